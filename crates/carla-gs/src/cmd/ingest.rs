@@ -1,0 +1,51 @@
+//! `carla-gs ingest <input>... --out <scene_dir>`
+use anyhow::Context;
+use std::path::PathBuf;
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Format {
+    /// Waymo Open Dataset v1 perception `Frame` records.
+    Waymo,
+    /// Waymo Open Motion Dataset `Scenario` records.
+    Womd,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// TFRecord files (one Waymo segment, or WOMD scenario files).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Output scene directory (several WOMD scenarios: one sub-directory per scenario id).
+    #[arg(long)]
+    out: PathBuf,
+    /// Force the input kind instead of detecting it from the content.
+    #[arg(long, value_enum)]
+    format: Option<Format>,
+    /// Replace an existing output directory.
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let expect = match a.format {
+        None => ingest::Expect::Auto,
+        Some(Format::Waymo) => ingest::Expect::Frame,
+        Some(Format::Womd) => ingest::Expect::Scenario,
+    };
+    let pb = super::progress::bytes_bar("ingest");
+    let written =
+        ingest::ingest(&a.inputs, &a.out, expect, a.force, &pb).context("ingest failed; nothing was written")?;
+    pb.finish_and_clear();
+    for w in &written {
+        let s = &w.scene;
+        println!(
+            "wrote {}: {} frames, {} cameras, {} tracks, {:.1} s",
+            w.dir.display(),
+            s.frames.len(),
+            s.cameras.len(),
+            s.tracks.len(),
+            s.duration_s()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,4 @@
+//! One module per subcommand: argument struct plus a `run` that calls library crates.
+pub mod ingest;
+pub mod inspect;
+pub mod progress;

@@ -1,0 +1,26 @@
+//! Errors of the scene crate. Each names the file and, for content errors, the field path
+//! (e.g. `frames[3].world_from_ego`) and what was expected.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: at `{field}`: {message}")]
+    Json { file: PathBuf, field: String, message: String },
+    #[error("{file}: at `{field}`: {message}")]
+    Invalid { file: PathBuf, field: String, message: String },
+    #[error("{path}: already exists (pass --force to replace it)")]
+    AlreadyExists { path: PathBuf },
+}
+
+impl SceneError {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::Io { path: path.into(), source }
+    }
+}

@@ -1,0 +1,97 @@
+//! The on-disk scene directory (`docs/scene-format.md`):
+//!
+//! ```text
+//! <scene>/scene.json         versioned description ("format": "carla-gs-scene/1")
+//! <scene>/images/<frame>_<CAMERA>.jpg   original JPEG bytes, never re-encoded
+//! <scene>/lidar/<frame>.bin  little-endian f32 x y z intensity per point, ego frame
+//! ```
+//!
+//! Loading parses with field paths (`serde_path_to_error`) and then validates the content
+//! (`validate`), so the first bad field is reported by path.
+
+use crate::error::SceneError;
+use crate::model::Scene;
+use crate::output::write_file_atomic;
+use crate::validate::validate_scene;
+use std::path::Path;
+
+pub const SCENE_FILE: &str = "scene.json";
+pub const IMAGES_DIR: &str = "images";
+pub const LIDAR_DIR: &str = "lidar";
+
+/// The relative path of a frame's image for a camera.
+pub fn image_rel_path(frame: usize, camera: &str) -> String {
+    format!("{IMAGES_DIR}/{frame:06}_{camera}.jpg")
+}
+
+/// The relative path of a frame's LiDAR sweep.
+pub fn lidar_rel_path(frame: usize) -> String {
+    format!("{LIDAR_DIR}/{frame:06}.bin")
+}
+
+/// Loads and validates `<dir>/scene.json` (and checks that referenced files exist).
+pub fn load_scene(dir: &Path) -> Result<Scene, SceneError> {
+    let file = dir.join(SCENE_FILE);
+    let text = std::fs::read_to_string(&file).map_err(|e| SceneError::io(&file, e))?;
+    let scene = parse_scene_json(&file, &text)?;
+    validate_scene(&scene, Some(dir)).map_err(|(field, message)| SceneError::Invalid { file, field, message })?;
+    Ok(scene)
+}
+
+/// Parses scene JSON text; `file` is only used in error messages. Does not validate content.
+pub fn parse_scene_json(file: &Path, text: &str) -> Result<Scene, SceneError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(de).map_err(|e| SceneError::Json {
+        file: file.to_path_buf(),
+        field: e.path().to_string(),
+        message: e.inner().to_string(),
+    })
+}
+
+/// Validates `scene` (files included) and writes `<dir>/scene.json` atomically. Write the
+/// images and LiDAR first: validation checks that they exist. The JSON is compact (a WOMD
+/// scene is ~4 MB that way); `jq . scene.json` shows it indented.
+pub fn write_scene(dir: &Path, scene: &Scene) -> Result<(), SceneError> {
+    let file = dir.join(SCENE_FILE);
+    validate_scene(scene, Some(dir)).map_err(|(field, message)| SceneError::Invalid {
+        file: file.clone(),
+        field,
+        message,
+    })?;
+    let json = serde_json::to_vec(scene).map_err(|e| SceneError::Json {
+        file: file.clone(),
+        field: String::new(),
+        message: e.to_string(),
+    })?;
+    write_file_atomic(&file, &json)
+}
+
+/// Writes a LiDAR sweep (`[x, y, z, intensity]` per point) in the scene's binary layout.
+pub fn write_lidar(path: &Path, points: &[[f32; 4]]) -> Result<(), SceneError> {
+    let mut bytes = Vec::with_capacity(points.len() * 16);
+    for p in points {
+        for v in p {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    write_file_atomic(path, &bytes)
+}
+
+/// Reads a LiDAR sweep; the size must be a multiple of 16 bytes.
+pub fn read_lidar(path: &Path) -> Result<Vec<[f32; 4]>, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    if bytes.len() % 16 != 0 {
+        return Err(SceneError::Invalid {
+            file: path.to_path_buf(),
+            field: String::new(),
+            message: format!("{} bytes is not a whole number of 16-byte points (x y z intensity f32)", bytes.len()),
+        });
+    }
+    Ok(bytes
+        .chunks_exact(16)
+        .map(|c| {
+            let f = |i: usize| f32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]);
+            [f(0), f(4), f(8), f(12)]
+        })
+        .collect())
+}

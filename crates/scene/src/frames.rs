@@ -1,0 +1,134 @@
+//! Frame conventions: the one place that says which way every axis points.
+//!
+//! * **World**: the log's own fixed frame (Waymo global / WOMD map frame), right-handed, z up.
+//! * **Ego** (Waymo "vehicle" frame): origin at the ego's reference point, x forward, y left, z up.
+//!   `world_from_ego` is Waymo's frame `pose`.
+//! * **Waymo camera**: x forward (optical axis), y left, z up. Calibrations give `ego_from_camera`.
+//! * **OpenCV camera** (`cv`): x right, y down, z forward. Projection and rendering use it.
+//! * **Box**: a tracked object's frame: origin at the box centre, x along its length (heading),
+//!   y left, z up. `world_from_box` comes from the centre and the heading (yaw about world z).
+//!
+//! Headings are radians, counter-clockwise about +z, wrapped to (-pi, pi].
+
+use crate::transform::Transform3;
+use glam::{DMat3, DVec3};
+
+/// Rotation taking Waymo camera axes (x fwd, y left, z up) to OpenCV axes (x right, y down,
+/// z fwd): `x_cv = -y_w`, `y_cv = -z_w`, `z_cv = x_w`.
+pub fn cv_from_waymo_camera() -> Transform3 {
+    Transform3::from_rotation_translation(
+        DMat3::from_cols(
+            DVec3::new(0.0, 0.0, 1.0),  // image of waymo +x
+            DVec3::new(-1.0, 0.0, 0.0), // image of waymo +y
+            DVec3::new(0.0, -1.0, 0.0), // image of waymo +z
+        ),
+        DVec3::ZERO,
+    )
+}
+
+/// `waymo_camera_from_cv`, the inverse of [`cv_from_waymo_camera`].
+pub fn waymo_camera_from_cv() -> Transform3 {
+    cv_from_waymo_camera().inverse()
+}
+
+/// `world_from_box` for a box with centre `center` and heading `heading` (yaw about world z).
+pub fn world_from_box(center: DVec3, heading: f64) -> Transform3 {
+    Transform3::from_yaw_translation(heading, center)
+}
+
+/// Wraps an angle to (-pi, pi].
+pub fn wrap_angle(a: f64) -> f64 {
+    let two_pi = std::f64::consts::TAU;
+    let mut w = a.rem_euclid(two_pi);
+    if w > std::f64::consts::PI {
+        w -= two_pi;
+    }
+    w
+}
+
+/// Re-expresses a heading measured in `source` (about its z axis) in `target`: the yaw of the
+/// source-frame direction `(cos h, sin h, 0)` after rotation, projected on the target's xy plane.
+pub fn heading_in(target_from_source: &Transform3, heading: f64) -> f64 {
+    let d = target_from_source.transform_vector(DVec3::new(heading.cos(), heading.sin(), 0.0));
+    d.y.atan2(d.x)
+}
+
+/// The eight corners of a box (length along x, width along y, height along z) in the box frame.
+pub fn box_corners(size_lwh: [f64; 3]) -> [DVec3; 8] {
+    let [l, w, h] = size_lwh.map(|v| v / 2.0);
+    let mut out = [DVec3::ZERO; 8];
+    for (i, c) in out.iter_mut().enumerate() {
+        *c = DVec3::new(
+            if i & 1 == 0 { l } else { -l },
+            if i & 2 == 0 { w } else { -w },
+            if i & 4 == 0 { h } else { -h },
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn waymo_forward_is_cv_depth() {
+        let cv_from_w = cv_from_waymo_camera();
+        // A point 10 m ahead, 2 m to the left and 1 m up in Waymo camera axes ...
+        let p = cv_from_w.transform_point(DVec3::new(10.0, 2.0, 1.0));
+        // ... is at depth 10, left of centre (negative x) and above centre (negative y) in OpenCV.
+        assert_eq!(p, DVec3::new(-2.0, -1.0, 10.0));
+        // Normalised coordinates agree with Waymo's xn = -y/x, yn = -z/x.
+        assert!((p.x / p.z - (-2.0 / 10.0)).abs() < 1e-15);
+        assert!((p.y / p.z - (-1.0 / 10.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn cv_round_trip() {
+        let p = DVec3::new(0.3, -7.0, 2.5);
+        let q = waymo_camera_from_cv().transform_point(cv_from_waymo_camera().transform_point(p));
+        assert!((p - q).length() < 1e-15);
+        assert!(cv_from_waymo_camera().orthonormality_error() < 1e-15);
+        // It is a proper rotation (right-handed to right-handed).
+        assert!((cv_from_waymo_camera().rotation().determinant() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn box_and_ego_round_trip() {
+        let world_from_ego = Transform3::from_rotation_translation(
+            DMat3::from_euler(glam::EulerRot::ZYX, 2.5, 0.02, -0.01),
+            DVec3::new(1000.0, -200.0, 5.0),
+        );
+        let ego_from_world = world_from_ego.inverse();
+        let center_ego = DVec3::new(12.0, -3.0, 0.8);
+        let heading_ego = 0.4;
+        let center_world = world_from_ego.transform_point(center_ego);
+        let heading_world = heading_in(&world_from_ego, heading_ego);
+        assert!((ego_from_world.transform_point(center_world) - center_ego).length() < 1e-9);
+        assert!((heading_in(&ego_from_world, heading_world) - heading_ego).abs() < 1e-3);
+        // With no pitch/roll the heading round trip is exact.
+        let flat = Transform3::from_yaw_translation(2.5, DVec3::new(3.0, 4.0, 0.0));
+        let hw = heading_in(&flat, heading_ego);
+        assert!((wrap_angle(hw - 2.5 - heading_ego)).abs() < 1e-12);
+        assert!((heading_in(&flat.inverse(), hw) - heading_ego).abs() < 1e-12);
+    }
+
+    #[test]
+    fn box_corners_span_the_size() {
+        let c = box_corners([4.0, 2.0, 1.5]);
+        let max = c.iter().fold(DVec3::splat(f64::MIN), |m, p| m.max(*p));
+        let min = c.iter().fold(DVec3::splat(f64::MAX), |m, p| m.min(*p));
+        assert_eq!(max - min, DVec3::new(4.0, 2.0, 1.5));
+        let wb = world_from_box(DVec3::new(5.0, 0.0, 0.0), std::f64::consts::FRAC_PI_2);
+        // The box's front (+x) points along world +y after a 90 degree heading.
+        let front = wb.transform_point(DVec3::new(2.0, 0.0, 0.0));
+        assert!((front - DVec3::new(5.0, 2.0, 0.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        assert!((wrap_angle(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap_angle(-0.5) + 0.5).abs() < 1e-15);
+        assert!((wrap_angle(7.0) - (7.0 - std::f64::consts::TAU)).abs() < 1e-12);
+    }
+}

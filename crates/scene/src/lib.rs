@@ -1,0 +1,27 @@
+//! `scene`: the common language of carla-gs. Every stage reads and writes these types; this
+//! crate imports nothing of ours. It holds the scene model (cameras, frames, tracks, map),
+//! the frame conventions (`frames`), rigid transforms named `target_from_source`, and the
+//! versioned on-disk format with validation and crash-safe writes.
+
+pub mod camera;
+pub mod error;
+pub mod format;
+pub mod frames;
+pub mod map;
+pub mod model;
+pub mod output;
+pub mod summary;
+pub mod track;
+pub mod transform;
+pub mod validate;
+
+pub use camera::{Camera, Distortion, Intrinsics, RollingShutter};
+pub use error::SceneError;
+pub use format::{load_scene, write_scene};
+pub use glam;
+pub use map::{Map, Polyline};
+pub use model::{Ego, EgoSizeSource, Frame, ImageRef, LidarRef, Scene, Source, SourceKind, SCENE_FORMAT};
+pub use output::{write_file_atomic, StagedDir};
+pub use summary::SceneSummary;
+pub use track::{ObjectClass, Track, TrackState};
+pub use transform::Transform3;

@@ -1,0 +1,142 @@
+//! Crash-safe outputs. Files are written to a temporary sibling and renamed into place; whole
+//! output directories are built in a staging directory beside the destination and renamed in
+//! one step, so a crash or an error never leaves a half-written result over a good one.
+
+use crate::error::SceneError;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
+pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), SceneError> {
+    let dir = parent_dir(path);
+    std::fs::create_dir_all(&dir).map_err(|e| SceneError::io(&dir, e))?;
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&format!(".{}.", file_name(path)))
+        .suffix(".tmp")
+        .tempfile_in(&dir)
+        .map_err(|e| SceneError::io(&dir, e))?;
+    tmp.write_all(bytes).map_err(|e| SceneError::io(tmp.path(), e))?;
+    // tempfile creates 0600 files; outputs are ordinary files.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let perms = std::fs::Permissions::from_mode(0o644);
+        tmp.as_file().set_permissions(perms).map_err(|e| SceneError::io(tmp.path(), e))?;
+    }
+    tmp.as_file().sync_all().map_err(|e| SceneError::io(tmp.path(), e))?;
+    tmp.persist(path).map_err(|e| SceneError::io(path, e.error))?;
+    Ok(())
+}
+
+/// A directory under construction. Dropping it without [`StagedDir::commit`] deletes it.
+pub struct StagedDir {
+    staging: tempfile::TempDir,
+    dest: PathBuf,
+}
+
+impl StagedDir {
+    /// Starts building the directory `dest`. Fails early if `dest` exists and `overwrite` is off.
+    pub fn new(dest: &Path, overwrite: bool) -> Result<Self, SceneError> {
+        if dest.exists() && !overwrite {
+            return Err(SceneError::AlreadyExists { path: dest.to_path_buf() });
+        }
+        let parent = parent_dir(dest);
+        std::fs::create_dir_all(&parent).map_err(|e| SceneError::io(&parent, e))?;
+        let staging = tempfile::Builder::new()
+            .prefix(&format!(".{}.", file_name(dest)))
+            .suffix(".tmp")
+            .tempdir_in(&parent)
+            .map_err(|e| SceneError::io(&parent, e))?;
+        Ok(Self { staging, dest: dest.to_path_buf() })
+    }
+
+    /// Where to write the directory's contents now.
+    pub fn path(&self) -> &Path {
+        self.staging.path()
+    }
+
+    pub fn dest(&self) -> &Path {
+        &self.dest
+    }
+
+    /// Moves the finished directory into place, replacing an old one (only if `overwrite`
+    /// was given to `new`; the old one is moved aside first and removed after the rename).
+    pub fn commit(self) -> Result<PathBuf, SceneError> {
+        let staged = self.staging.keep();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&staged, std::fs::Permissions::from_mode(0o755));
+        }
+        let mut old = None;
+        if self.dest.exists() {
+            let aside = parent_dir(&self.dest).join(format!(".{}.old-{}", file_name(&self.dest), std::process::id()));
+            std::fs::rename(&self.dest, &aside).map_err(|e| SceneError::io(&self.dest, e))?;
+            old = Some(aside);
+        }
+        if let Err(e) = std::fs::rename(&staged, &self.dest) {
+            if let Some(aside) = &old {
+                let _ = std::fs::rename(aside, &self.dest);
+            }
+            let _ = std::fs::remove_dir_all(&staged);
+            return Err(SceneError::io(&self.dest, e));
+        }
+        if let Some(aside) = old {
+            std::fs::remove_dir_all(&aside).map_err(|e| SceneError::io(&aside, e))?;
+        }
+        Ok(self.dest)
+    }
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn staged_dir_vanishes_without_commit() {
+        let root = tempfile::tempdir().unwrap();
+        let dest = root.path().join("scene");
+        {
+            let staged = StagedDir::new(&dest, false).unwrap();
+            std::fs::write(staged.path().join("x"), b"1").unwrap();
+        }
+        assert!(!dest.exists());
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 0, "staging left behind");
+    }
+
+    #[test]
+    fn staged_dir_commit_and_replace() {
+        let root = tempfile::tempdir().unwrap();
+        let dest = root.path().join("scene");
+        let a = StagedDir::new(&dest, false).unwrap();
+        std::fs::write(a.path().join("v"), b"1").unwrap();
+        a.commit().unwrap();
+        assert!(matches!(StagedDir::new(&dest, false), Err(SceneError::AlreadyExists { .. })));
+        let b = StagedDir::new(&dest, true).unwrap();
+        std::fs::write(b.path().join("v"), b"2").unwrap();
+        b.commit().unwrap();
+        assert_eq!(std::fs::read(dest.join("v")).unwrap(), b"2");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn atomic_file_replaces_whole() {
+        let root = tempfile::tempdir().unwrap();
+        let p = root.path().join("a.json");
+        write_file_atomic(&p, b"old").unwrap();
+        write_file_atomic(&p, b"new").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,68 @@
+//! Tracked objects: a stable id, a class, and per-frame box states in the world frame.
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+/// Object class, merged across Waymo's label types and WOMD's object types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObjectClass {
+    Vehicle,
+    Pedestrian,
+    Cyclist,
+    Sign,
+    Other,
+}
+
+impl ObjectClass {
+    pub const ALL: [ObjectClass; 5] = [Self::Vehicle, Self::Pedestrian, Self::Cyclist, Self::Sign, Self::Other];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Vehicle => "vehicle",
+            Self::Pedestrian => "pedestrian",
+            Self::Cyclist => "cyclist",
+            Self::Sign => "sign",
+            Self::Other => "other",
+        }
+    }
+}
+
+/// The state of one track at one frame. Positions and velocities are world-frame SI values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrackState {
+    /// Index into `Scene::frames`.
+    pub frame: usize,
+    /// Box centre in the world frame (m).
+    pub center: DVec3,
+    /// Yaw of the box's +x (length) axis about world +z (rad).
+    pub heading: f64,
+    /// Box length (along heading), width, height (m).
+    pub size_lwh: [f64; 3],
+    /// World-frame velocity (m/s) when the source provides one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<DVec3>,
+    /// False where the source marks the state as padding (WOMD `valid = false`).
+    pub valid: bool,
+}
+
+/// One tracked object across the scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    /// The source's id as a string (Waymo label id, WOMD track id), stable across frames.
+    pub id: String,
+    pub class: ObjectClass,
+    /// States sorted by strictly increasing `frame`.
+    pub states: Vec<TrackState>,
+}
+
+impl Track {
+    /// The valid state at `frame`, if any.
+    pub fn state_at(&self, frame: usize) -> Option<&TrackState> {
+        self.states.binary_search_by_key(&frame, |s| s.frame).ok().map(|i| &self.states[i]).filter(|s| s.valid)
+    }
+
+    pub fn valid_states(&self) -> impl Iterator<Item = &TrackState> {
+        self.states.iter().filter(|s| s.valid)
+    }
+}
