@@ -22,6 +22,10 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Summarise a scene directory or a TFRecord file.
     Inspect(cmd::inspect::Args),
+    /// Execute a corner-case plan with vehicle dynamics and the CARLA PID tracker.
+    Simulate(cmd::simulate::Args),
+    /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
+    Metrics(cmd::metrics::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +43,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Metrics(a) => cmd::metrics::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

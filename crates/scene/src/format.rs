@@ -40,6 +40,11 @@ pub fn load_scene(dir: &Path) -> Result<Scene, SceneError> {
 
 /// Parses scene JSON text; `file` is only used in error messages. Does not validate content.
 pub fn parse_scene_json(file: &Path, text: &str) -> Result<Scene, SceneError> {
+    parse_json(file, text)
+}
+
+/// Parses JSON into `T`, reporting the failing field by path; `file` names it in errors.
+pub fn parse_json<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, SceneError> {
     let de = &mut serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(de).map_err(|e| SceneError::Json {
         file: file.to_path_buf(),
@@ -64,6 +69,22 @@ pub fn write_scene(dir: &Path, scene: &Scene) -> Result<(), SceneError> {
         message: e.to_string(),
     })?;
     write_file_atomic(&file, &json)
+}
+
+/// Reads and parses a JSON file (no content validation).
+pub fn read_json<T: serde::de::DeserializeOwned>(file: &Path) -> Result<T, SceneError> {
+    let text = std::fs::read_to_string(file).map_err(|e| SceneError::io(file, e))?;
+    parse_json(file, &text)
+}
+
+/// Writes `value` as pretty JSON through a temporary file and a rename.
+pub fn write_json_pretty<T: serde::Serialize>(file: &Path, value: &T) -> Result<(), SceneError> {
+    let json = serde_json::to_vec_pretty(value).map_err(|e| SceneError::Json {
+        file: file.to_path_buf(),
+        field: String::new(),
+        message: e.to_string(),
+    })?;
+    write_file_atomic(file, &json)
 }
 
 /// Writes a LiDAR sweep (`[x, y, z, intensity]` per point) in the scene's binary layout.

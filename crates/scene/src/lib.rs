@@ -5,23 +5,31 @@
 
 pub mod camera;
 pub mod error;
+pub mod executed;
 pub mod format;
 pub mod frames;
 pub mod map;
 pub mod model;
+pub mod motion;
 pub mod output;
+pub mod plan;
 pub mod summary;
 pub mod track;
 pub mod transform;
 pub mod validate;
+pub mod zones;
 
 pub use camera::{Camera, Distortion, Intrinsics, RollingShutter};
 pub use error::SceneError;
+pub use executed::{Executed, ExecutedStep};
 pub use format::{load_scene, write_scene};
 pub use glam;
 pub use map::{Map, Polyline};
 pub use model::{Ego, EgoSizeSource, Frame, ImageRef, LidarRef, Scene, Source, SourceKind, SCENE_FORMAT};
+pub use motion::Pose2;
 pub use output::{write_file_atomic, StagedDir};
+pub use plan::{Behavior, Plan, Risk, Waypoint};
 pub use summary::SceneSummary;
 pub use track::{ObjectClass, Track, TrackState};
 pub use transform::Transform3;
+pub use zones::{Zone, ZoneLayout};

@@ -1,4 +1,6 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
 pub mod ingest;
 pub mod inspect;
+pub mod metrics;
 pub mod progress;
+pub mod simulate;

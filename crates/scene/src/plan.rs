@@ -1,0 +1,256 @@
+//! The corner-case plan (`scenario.json`, format `carla-gs-plan/1`): which vehicle does what,
+//! aimed at which zone around the ego, and the reference waypoints it should follow.
+//!
+//! Written by the reasoning stage (agents, planner, baselines) and consumed by the physics stage.
+//! Waypoints are world-frame positions on the scene clock, spaced exactly `dt_s` apart, from the
+//! analysis time `start_time_s` (t0) to `t0 + ttc_s`.
+
+use crate::zones::{Zone, ZoneLayout};
+use serde::{Deserialize, Serialize};
+
+pub const PLAN_FORMAT: &str = "carla-gs-plan/1";
+
+/// The behaviour library (REFERENCE.md §3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Behavior {
+    /// The lead vehicle brakes hard in front of the ego.
+    SuddenBraking,
+    /// A vehicle in an adjacent lane cuts in ahead of the ego.
+    SuddenCutIn,
+    /// A vehicle behind closes in on the ego's rear.
+    RearTailgating,
+    /// A vehicle overtakes the ego with a small lateral gap.
+    SidePass,
+    /// A vehicle appears from the ego's blind spot.
+    BlindSpotAppearance,
+    /// A parked vehicle at least 20 m ahead pulls out suddenly.
+    SuddenStart,
+    /// An oncoming vehicle drifts over the lane towards the ego (near head-on).
+    OpposingDrift,
+    /// The lead vehicle swerves around an obstacle in an S-shape.
+    LeadSwerve,
+}
+
+impl Behavior {
+    pub const ALL: [Behavior; 8] = [
+        Behavior::SuddenBraking,
+        Behavior::SuddenCutIn,
+        Behavior::RearTailgating,
+        Behavior::SidePass,
+        Behavior::BlindSpotAppearance,
+        Behavior::SuddenStart,
+        Behavior::OpposingDrift,
+        Behavior::LeadSwerve,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Behavior::SuddenBraking => "sudden_braking",
+            Behavior::SuddenCutIn => "sudden_cut_in",
+            Behavior::RearTailgating => "rear_tailgating",
+            Behavior::SidePass => "side_pass",
+            Behavior::BlindSpotAppearance => "blind_spot_appearance",
+            Behavior::SuddenStart => "sudden_start",
+            Behavior::OpposingDrift => "opposing_drift",
+            Behavior::LeadSwerve => "lead_swerve",
+        }
+    }
+}
+
+impl std::str::FromStr for Behavior {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Behavior::ALL.into_iter().find(|b| b.as_str() == s).ok_or_else(|| {
+            let names: Vec<&str> = Behavior::ALL.iter().map(|b| b.as_str()).collect();
+            format!("unknown behaviour `{s}` (one of {})", names.join(", "))
+        })
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Risk {
+    Low,
+    Medium,
+    High,
+    Critical,
+}
+
+/// A timed reference point in the world frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Waypoint {
+    pub t: f64,
+    pub x: f64,
+    pub y: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    pub format: String,
+    /// `Scene::name` of the scene the plan was made for.
+    pub scene: String,
+    pub behavior: Behavior,
+    pub adversary_track: String,
+    pub target_zone: Zone,
+    #[serde(default)]
+    pub zone_layout: ZoneLayout,
+    /// Analysis time t0 on the scene clock (s): where the waypoints start.
+    pub start_time_s: f64,
+    /// Time to collision assumed by the plan (s): the last waypoint is at t0 + TTC.
+    pub ttc_s: f64,
+    pub risk: Risk,
+    /// Who wrote the plan (`planner`, `local:<model>`, `rule`, `random`, ...).
+    pub agent: String,
+    #[serde(default)]
+    pub reasoning: String,
+    /// Spacing of the waypoints (s).
+    pub dt_s: f64,
+    pub waypoints: Vec<Waypoint>,
+    /// The collision target point (world frame), when the agent chose one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+}
+
+/// Tolerance on waypoint times (s).
+pub const TIME_TOLERANCE_S: f64 = 1e-6;
+/// Speed implied between consecutive waypoints above which a plan is not physical (m/s).
+/// (The reasoning stage checks a stricter 40 m/s; this is the format's sanity bound.)
+pub const MAX_PLAUSIBLE_SPEED: f64 = 100.0;
+
+impl Plan {
+    /// Checks the plan on its own (scene-dependent checks live with the consumer):
+    /// returns the first problem as `(field path, message)`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let fail = |f: String, m: String| Err((f, m));
+        if self.format != PLAN_FORMAT {
+            return fail("format".into(), format!("expected \"{PLAN_FORMAT}\", got \"{}\"", self.format));
+        }
+        if self.adversary_track.is_empty() {
+            return fail("adversary_track".into(), "must name a track".into());
+        }
+        for (name, v) in [("start_time_s", self.start_time_s), ("ttc_s", self.ttc_s), ("dt_s", self.dt_s)] {
+            if !v.is_finite() {
+                return fail(name.into(), "must be a finite number".into());
+            }
+        }
+        if self.dt_s <= 0.0 || self.ttc_s <= 0.0 {
+            return fail("dt_s".into(), format!("dt_s ({}) and ttc_s ({}) must be positive", self.dt_s, self.ttc_s));
+        }
+        if self.waypoints.len() < 2 {
+            return fail("waypoints".into(), format!("need at least 2 waypoints, got {}", self.waypoints.len()));
+        }
+        for (i, w) in self.waypoints.iter().enumerate() {
+            if !(w.t.is_finite() && w.x.is_finite() && w.y.is_finite()) {
+                return fail(format!("waypoints[{i}]"), "t, x and y must be finite numbers".into());
+            }
+            if i > 0 {
+                let step = w.t - self.waypoints[i - 1].t;
+                if step <= 0.0 {
+                    return fail(
+                        format!("waypoints[{i}].t"),
+                        format!("times must increase strictly ({} after {})", w.t, self.waypoints[i - 1].t),
+                    );
+                }
+                if (step - self.dt_s).abs() > TIME_TOLERANCE_S {
+                    return fail(
+                        format!("waypoints[{i}].t"),
+                        format!("spacing {step} s differs from dt_s {}", self.dt_s),
+                    );
+                }
+                let prev = &self.waypoints[i - 1];
+                let speed = (w.x - prev.x).hypot(w.y - prev.y) / step;
+                if speed.is_nan() || speed > MAX_PLAUSIBLE_SPEED {
+                    return fail(
+                        format!("waypoints[{i}]"),
+                        format!(
+                            "implies {speed:.3e} m/s from waypoints[{}] (at most {MAX_PLAUSIBLE_SPEED} m/s)",
+                            i - 1
+                        ),
+                    );
+                }
+            }
+        }
+        if (self.waypoints[0].t - self.start_time_s).abs() > TIME_TOLERANCE_S {
+            return fail("waypoints[0].t".into(), format!("must equal start_time_s ({})", self.start_time_s));
+        }
+        if let Some(t) = self.target {
+            if !(t[0].is_finite() && t[1].is_finite()) {
+                return fail("target".into(), "must be finite".into());
+            }
+        }
+        Ok(())
+    }
+
+    /// Time of the last waypoint.
+    pub fn end_time_s(&self) -> f64 {
+        self.waypoints.last().map_or(self.start_time_s, |w| w.t)
+    }
+}
+
+/// Loads and validates a plan file.
+pub fn load_plan(path: &std::path::Path) -> Result<Plan, crate::SceneError> {
+    let plan: Plan = crate::format::read_json(path)?;
+    plan.validate().map_err(|(field, message)| crate::SceneError::Invalid {
+        file: path.to_path_buf(),
+        field,
+        message,
+    })?;
+    Ok(plan)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    pub fn sample_plan() -> Plan {
+        Plan {
+            format: PLAN_FORMAT.into(),
+            scene: "s".into(),
+            behavior: Behavior::SuddenBraking,
+            adversary_track: "7".into(),
+            target_zone: Zone::Front,
+            zone_layout: ZoneLayout::Adjacent,
+            start_time_s: 1.0,
+            ttc_s: 0.3,
+            risk: Risk::High,
+            agent: "test".into(),
+            reasoning: String::new(),
+            dt_s: 0.1,
+            waypoints: (0..4).map(|i| Waypoint { t: 1.0 + 0.1 * i as f64, x: i as f64, y: 0.0 }).collect(),
+            target: None,
+            seed: None,
+        }
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        assert!(sample_plan().validate().is_ok());
+        let mut p = sample_plan();
+        p.waypoints[2].t = p.waypoints[1].t;
+        assert_eq!(p.validate().unwrap_err().0, "waypoints[2].t");
+        let mut p = sample_plan();
+        p.waypoints[3].x = f64::NAN;
+        assert_eq!(p.validate().unwrap_err().0, "waypoints[3]");
+        let mut p = sample_plan();
+        p.start_time_s = 0.5;
+        assert_eq!(p.validate().unwrap_err().0, "waypoints[0].t");
+        let mut p = sample_plan();
+        p.waypoints[2].x = 1e300;
+        assert!(p.validate().unwrap_err().1.contains("m/s from waypoints[1]"));
+        let mut p = sample_plan();
+        p.waypoints[3].t += 0.05;
+        assert!(p.validate().unwrap_err().1.contains("differs from dt_s"));
+    }
+
+    #[test]
+    fn behaviour_names_round_trip() {
+        for b in Behavior::ALL {
+            assert_eq!(b.as_str().parse::<Behavior>().unwrap(), b);
+            assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{}\"", b.as_str()));
+        }
+        assert!("teleport".parse::<Behavior>().is_err());
+    }
+}

@@ -1,0 +1,71 @@
+//! Oriented-box contact between the adversary and every other actor replayed from the log
+//! (the ego and all other tracks), with parry2d's exact box-box intersection test.
+
+use parry2d_f64::math::{Pose2 as PPose, Vector};
+use parry2d_f64::query::intersection_test;
+use parry2d_f64::shape::Cuboid;
+use scene::motion::{sample_series, Pose2};
+use scene::{ObjectClass, Scene};
+
+/// A replayed actor: its pose runs (gaps split them) and its box.
+pub struct Replayed {
+    pub id: String,
+    pub class: ObjectClass,
+    pub runs: Vec<Vec<Pose2>>,
+    pub cuboid: Cuboid,
+    pub radius: f64,
+}
+
+impl Replayed {
+    pub fn pose_at(&self, t: f64) -> Option<Pose2> {
+        self.runs.iter().find_map(|r| sample_series(r, t))
+    }
+}
+
+pub fn cuboid(length: f64, width: f64) -> (Cuboid, f64) {
+    (Cuboid::new(Vector::new(length / 2.0, width / 2.0)), 0.5 * length.hypot(width))
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// The ego and every track except `exclude`, ready for contact queries.
+pub fn replayed_actors(scene: &Scene, exclude: &str) -> Vec<Replayed> {
+    let [l, w, _] = scene.ego.size_lwh;
+    let (c, r) = cuboid(l, w);
+    let mut out = vec![Replayed {
+        id: "ego".into(),
+        class: ObjectClass::Vehicle,
+        runs: vec![scene.ego_series()],
+        cuboid: c,
+        radius: r,
+    }];
+    for t in &scene.tracks {
+        if t.id == exclude || scene.ego.track_id.as_deref() == Some(t.id.as_str()) {
+            continue;
+        }
+        let len = median(t.valid_states().map(|s| s.size_lwh[0]).collect());
+        let wid = median(t.valid_states().map(|s| s.size_lwh[1]).collect());
+        if len <= 0.0 || wid <= 0.0 {
+            continue;
+        }
+        let (c, r) = cuboid(len, wid);
+        out.push(Replayed { id: t.id.clone(), class: t.class, runs: scene.track_segments(t), cuboid: c, radius: r });
+    }
+    out
+}
+
+/// The first actor whose box overlaps the box `cuboid` at `pose` (time `pose.t`).
+pub fn first_overlap<'a>(actors: &'a [Replayed], pose: &Pose2, cuboid: &Cuboid, radius: f64) -> Option<&'a Replayed> {
+    let me = PPose::new(Vector::new(pose.x, pose.y), pose.heading);
+    actors.iter().find(|a| {
+        let Some(p) = a.pose_at(pose.t) else { return false };
+        if (p.x - pose.x).hypot(p.y - pose.y) > radius + a.radius {
+            return false;
+        }
+        let other = PPose::new(Vector::new(p.x, p.y), p.heading);
+        intersection_test(&me, cuboid, &other, &a.cuboid).map(|hit| hit.intersecting).unwrap_or(false)
+    })
+}

@@ -1,0 +1,18 @@
+//! `sim`: the Execute stage. A plan's waypoints become a physically feasible trajectory:
+//! CARLA's `VehiclePIDController` (`pid`) drives a CARLA-like actuation layer (`actuation`) on
+//! CommonRoad's single-track model (`model`, parameters in `params`), tracking a timed
+//! reference (`reference`, `tracker`); `rollout` runs a whole plan in a scene with oriented-box
+//! collision checks against the replayed log (`collision`). No CARLA server is needed.
+
+pub mod actuation;
+pub mod collision;
+pub mod error;
+pub mod model;
+pub mod params;
+pub mod pid;
+pub mod reference;
+pub mod rollout;
+pub mod tracker;
+
+pub use error::SimError;
+pub use rollout::{simulate, RolloutConfig};

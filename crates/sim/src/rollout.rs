@@ -1,0 +1,149 @@
+//! Executes a plan in a scene: "PID from frame 0". The adversary starts on its logged pose at
+//! the beginning of its logged run that contains the plan's start time, follows its logged path
+//! up to the start time and the plan's waypoints after it, all through PID + vehicle model. The
+//! ego and every other actor replay their logged poses. After every physics sub-step from the
+//! start time on, the adversary's box is tested against every other box; the first contact is
+//! recorded (the rollout continues to the plan's end: the trajectory is what gets rendered).
+
+use crate::actuation::ActuationParams;
+use crate::collision::{cuboid, first_overlap, replayed_actors};
+use crate::error::SimError;
+use crate::params::VehicleParams;
+use crate::reference::Reference;
+use crate::tracker::{Tracker, TrackerConfig};
+use scene::executed::{ActorInfo, Contact, ExecutedStep, ResampledSeries, EXECUTED_FORMAT};
+use scene::glam::DVec2;
+use scene::motion::{resample, sample_series, Pose2};
+use scene::{Executed, Plan, Scene};
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RolloutConfig {
+    pub tracker: TrackerConfig,
+    pub vehicle: VehicleParams,
+    pub actuation: ActuationParams,
+    /// Rates (Hz) of the resampled series in the output (10 Hz for metrics; add a video rate).
+    pub resample_hz: Vec<f64>,
+}
+
+impl Default for RolloutConfig {
+    fn default() -> Self {
+        RolloutConfig {
+            tracker: TrackerConfig::default(),
+            vehicle: VehicleParams::vehicle2(),
+            actuation: ActuationParams::default(),
+            resample_hz: vec![10.0],
+        }
+    }
+}
+
+/// How far the plan's first waypoint may be from the adversary's logged position at t0 (m).
+pub const MAX_START_OFFSET_M: f64 = 5.0;
+
+pub const BACKEND: &str =
+    "carla-gs physics: CommonRoad ST (vehicle2) + CARLA-like actuation + CARLA VehiclePIDController";
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Runs the plan. Checks the plan against the scene first.
+pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
+    plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
+    if plan.scene != scene.name {
+        return Err(SimError::WrongScene { plan: plan.scene.clone(), scene: scene.name.clone() });
+    }
+    let adversary =
+        scene.track(&plan.adversary_track).ok_or_else(|| SimError::UnknownTrack(plan.adversary_track.clone()))?;
+    let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
+    let t0 = plan.start_time_s;
+    if t0 < first - 1e-9 || t0 > last + 1e-9 {
+        return Err(SimError::OutsideScene { field: "start_time_s", t: t0, first, last });
+    }
+    let t_end = plan.end_time_s();
+    if t_end > last + 1e-6 {
+        return Err(SimError::OutsideScene { field: "waypoints", t: t_end, first, last });
+    }
+    let run = scene
+        .track_segments(adversary)
+        .into_iter()
+        .find(|r| r[0].t <= t0 + 1e-9 && r[r.len() - 1].t >= t0 - 1e-9)
+        .ok_or_else(|| SimError::NotPresent { id: adversary.id.clone(), t: t0 })?;
+
+    let logged_t0 = sample_series(&run, t0).ok_or_else(|| SimError::NotPresent { id: adversary.id.clone(), t: t0 })?;
+    let w0 = &plan.waypoints[0];
+    let offset = logged_t0.position().distance(DVec2::new(w0.x, w0.y));
+    if offset > MAX_START_OFFSET_M {
+        return Err(SimError::FarFromLog { id: adversary.id.clone(), distance: offset, max: MAX_START_OFFSET_M });
+    }
+    let mut points: Vec<(f64, DVec2)> = run.iter().filter(|p| p.t < t0 - 1e-9).map(|p| (p.t, p.position())).collect();
+    points.extend(plan.waypoints.iter().map(|w| (w.t, DVec2::new(w.x, w.y))));
+    let reference = Reference::new(points).map_err(SimError::Reference)?;
+    let t_start = reference.start_time();
+    let v0 = reference.velocity(t_start).length();
+    let p0 = reference.position(t_start);
+    let initial = [p0.x, p0.y, 0.0, v0, run[0].heading, 0.0, 0.0];
+
+    let size = [0, 1, 2].map(|k| median(adversary.valid_states().map(|s| s.size_lwh[k]).collect()));
+    let (adv_box, adv_radius) = cuboid(size[0], size[1]);
+    let actors = replayed_actors(scene, &adversary.id);
+    let mut contact: Option<Contact> = None;
+    let tracker = Tracker { config: &cfg.tracker, vehicle: &cfg.vehicle, actuation: &cfg.actuation };
+    let records = tracker.run(&reference, initial, t_start, t_end, |t, x| {
+        if contact.is_some() || t < t0 - 1e-9 {
+            return;
+        }
+        let pose = Pose2 { t, x: x[0], y: x[1], heading: x[4] };
+        if let Some(a) = first_overlap(&actors, &pose, &adv_box, adv_radius) {
+            contact = Some(Contact { t, other: a.id.clone(), class: a.class });
+        }
+    })?;
+
+    let ego_series = scene.ego_series();
+    let steps: Vec<ExecutedStep> = records
+        .iter()
+        .map(|r| ExecutedStep {
+            t: r.t,
+            x: r.state[0],
+            y: r.state[1],
+            heading: r.state[4],
+            speed: r.state[3],
+            yaw_rate: r.state[5],
+            accel_long: r.accel_long,
+            accel_lat: r.accel_lat,
+            steering_angle: r.state[2],
+            steer: r.control.steer,
+            throttle: r.control.throttle,
+            brake: r.control.brake,
+            ref_x: r.reference.x,
+            ref_y: r.reference.y,
+        })
+        .collect();
+    let ego_at = |t: f64| sample_series(&ego_series, t).expect("t within the scene span (checked above)");
+    let ego_path: Vec<Pose2> = steps.iter().map(|s| ego_at(s.t)).collect();
+    let adv_path: Vec<Pose2> = steps.iter().map(|s| Pose2 { t: s.t, x: s.x, y: s.y, heading: s.heading }).collect();
+    let resampled = cfg
+        .resample_hz
+        .iter()
+        .map(|hz| {
+            let adversary = resample(&adv_path, 1.0 / hz);
+            let ego = adversary.iter().map(|p| ego_at(p.t)).collect();
+            ResampledSeries { rate_hz: *hz, adversary, ego }
+        })
+        .collect();
+    Ok(Executed {
+        format: EXECUTED_FORMAT.to_string(),
+        scene: scene.name.clone(),
+        backend: BACKEND.to_string(),
+        plan: plan.clone(),
+        control_dt_s: cfg.tracker.control_dt_s,
+        physics_dt_s: cfg.tracker.max_physics_dt_s,
+        ego: ActorInfo { track_id: scene.ego.track_id.clone(), size_lwh: scene.ego.size_lwh },
+        adversary: ActorInfo { track_id: Some(adversary.id.clone()), size_lwh: size },
+        steps,
+        ego_path,
+        first_contact: contact,
+        resampled,
+    })
+}

@@ -1,0 +1,207 @@
+//! The tracking loop: every control period the CARLA PID turns the reference into pedal and
+//! steering commands; the actuation layer turns those into model inputs; the model integrates
+//! in sub-steps of at most `max_physics_dt_s` (shorter where the model is stiff).
+//!
+//! Target speed (m/s, converted to km/h only at the PID boundary):
+//! `max(0, |v_ref(t + dt)| + position_gain * ((p_ref(t) - p) . tangent))`: the reference's own
+//! speed one control period ahead, plus a correction for being behind or ahead along the path.
+//! The lateral target is [`Reference::lookahead`].
+
+use crate::actuation::{ActuationParams, Control};
+use crate::model::{derivative, rk4_step, stable_step, State};
+use crate::params::VehicleParams;
+use crate::pid::{to_carla, ControllerLimits, PidGains, VehiclePidController};
+use crate::reference::Reference;
+use scene::glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrackerConfig {
+    /// Control period (s): the PID's `dt` and how often commands change.
+    pub control_dt_s: f64,
+    /// Longest physics sub-step (s).
+    pub max_physics_dt_s: f64,
+    pub lateral: PidGains,
+    pub longitudinal: PidGains,
+    pub limits: ControllerLimits,
+    /// Speed correction per metre of along-track position error (1/s).
+    pub position_gain: f64,
+    /// Look-ahead time (s) and minimum distance (m) of the lateral target.
+    pub lookahead_s: f64,
+    pub lookahead_min_m: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        TrackerConfig {
+            control_dt_s: 0.05,
+            max_physics_dt_s: 0.01,
+            lateral: PidGains::PAPER,
+            longitudinal: PidGains::PAPER,
+            limits: ControllerLimits::PAPER,
+            position_gain: 1.0,
+            lookahead_s: 0.5,
+            lookahead_min_m: 3.0,
+        }
+    }
+}
+
+/// The vehicle after one control step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepRecord {
+    pub t: f64,
+    pub state: State,
+    pub control: Control,
+    /// Longitudinal acceleration applied during the step (m/s^2).
+    pub accel_long: f64,
+    /// Lateral acceleration at the end of the step, `v (psi_dot + beta_dot)` (m/s^2).
+    pub accel_lat: f64,
+    pub reference: DVec2,
+}
+
+/// Errors of the tracking loop.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TrackError {
+    #[error("the vehicle state became non-finite at t = {t:.3} s (model diverged)")]
+    Diverged { t: f64 },
+    #[error("invalid tracker configuration: {0}")]
+    Config(String),
+}
+
+pub struct Tracker<'a> {
+    pub config: &'a TrackerConfig,
+    pub vehicle: &'a VehicleParams,
+    pub actuation: &'a ActuationParams,
+}
+
+impl Tracker<'_> {
+    /// Tracks `reference` from `initial` at `t_start` until `t_end`. `on_substep(t, state)` is
+    /// called after every physics sub-step (collision checks). Returns one record per control
+    /// step, the initial state first.
+    pub fn run(
+        &self,
+        reference: &Reference,
+        initial: State,
+        t_start: f64,
+        t_end: f64,
+        mut on_substep: impl FnMut(f64, &State),
+    ) -> Result<Vec<StepRecord>, TrackError> {
+        let c = self.config;
+        if !(c.control_dt_s > 0.0 && c.max_physics_dt_s > 0.0 && c.max_physics_dt_s <= c.control_dt_s) {
+            return Err(TrackError::Config(format!(
+                "need 0 < max_physics_dt_s ({}) <= control_dt_s ({})",
+                c.max_physics_dt_s, c.control_dt_s
+            )));
+        }
+        let mut pid = VehiclePidController::new(c.lateral, c.longitudinal, c.limits, c.control_dt_s);
+        let mut x = initial;
+        let mut pedal = 0.0; // applied throttle - brake, lagging the command
+        let mut records = vec![StepRecord {
+            t: t_start,
+            state: x,
+            control: Control::default(),
+            accel_long: 0.0,
+            accel_lat: 0.0,
+            reference: reference.position(t_start),
+        }];
+        let n = ((t_end - t_start) / c.control_dt_s - 1e-9).ceil().max(0.0) as usize;
+        for k in 0..n {
+            let t = t_start + k as f64 * c.control_dt_s;
+            let period = c.control_dt_s.min(t_end - t);
+            let pos = DVec2::new(x[0], x[1]);
+            let v_ref = reference.velocity(t + c.control_dt_s);
+            let heading = DVec2::new(x[4].cos(), x[4].sin());
+            let tangent = v_ref.try_normalize().unwrap_or(heading);
+            let target_speed = (v_ref.length() + c.position_gain * (reference.position(t) - pos).dot(tangent)).max(0.0);
+            let wp = reference.lookahead(t, pos, c.lookahead_s, c.lookahead_min_m);
+            let wp_c = to_carla(wp.x, wp.y, 0.0);
+            let control =
+                pid.run_step(target_speed * 3.6, x[3].abs() * 3.6, &to_carla(x[0], x[1], x[4]), (wp_c.x, wp_c.y));
+
+            let mut elapsed = 0.0;
+            let mut accel = 0.0;
+            let mut u = [0.0, 0.0];
+            while elapsed < period - 1e-12 {
+                let h_try = (period - elapsed).min(c.max_physics_dt_s);
+                let applied = ActuationParams::applied(self.actuation.lag_pedal(pedal, &control, h_try), &control);
+                let a_try = self.actuation.longitudinal_accel(&applied, x[3], self.vehicle, h_try);
+                let h = stable_step(x[3], a_try, self.vehicle, c.max_physics_dt_s).min(period - elapsed);
+                pedal = self.actuation.lag_pedal(pedal, &control, h);
+                let applied = ActuationParams::applied(pedal, &control);
+                accel = self.actuation.longitudinal_accel(&applied, x[3], self.vehicle, h);
+                let delta_target = self.actuation.steering_target(&control, x[3], self.vehicle);
+                let rate = ((delta_target - x[2]) / h).clamp(self.vehicle.steering.v_min, self.vehicle.steering.v_max);
+                u = [rate, accel];
+                x = rk4_step(&x, u, self.vehicle, h);
+                elapsed += h;
+                if x.iter().any(|v| !v.is_finite()) {
+                    return Err(TrackError::Diverged { t: t + elapsed });
+                }
+                on_substep(t + elapsed, &x);
+            }
+            let d = derivative(&x, u, self.vehicle);
+            records.push(StepRecord {
+                t: t + period,
+                state: x,
+                control,
+                accel_long: accel,
+                accel_lat: x[3] * (d[4] + d[6]),
+                reference: reference.position(t + period),
+            });
+        }
+        Ok(records)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tracker_run(reference: &Reference, v0: f64, heading: f64) -> Vec<StepRecord> {
+        let (cfg, veh, act) = (TrackerConfig::default(), VehicleParams::vehicle2(), ActuationParams::default());
+        let tr = Tracker { config: &cfg, vehicle: &veh, actuation: &act };
+        let p0 = reference.position(reference.start_time());
+        let x0 = [p0.x, p0.y, 0.0, v0, heading, 0.0, 0.0];
+        tr.run(reference, x0, reference.start_time(), reference.end_time(), |_, _| {}).unwrap()
+    }
+
+    #[test]
+    fn holds_speed_on_a_straight_line() {
+        let r = Reference::new((0..=80).map(|i| (i as f64 * 0.1, DVec2::new(i as f64 * 1.5, 0.0))).collect()).unwrap();
+        let rec = tracker_run(&r, 15.0, 0.0);
+        assert_eq!(rec.len(), 161);
+        let last = rec.last().unwrap();
+        assert!((last.t - 8.0).abs() < 1e-9);
+        assert!((DVec2::new(last.state[0], last.state[1]) - r.position(8.0)).length() < 1.0);
+        assert!(last.state[1].abs() < 1e-6);
+    }
+
+    #[test]
+    fn follows_a_left_turn_and_brakes_to_a_stop() {
+        // Quarter circle of radius 30 m at 8 m/s, then a stop over 3 s.
+        let mut pts = Vec::new();
+        let omega = 8.0 / 30.0;
+        for i in 0..=59 {
+            let t = i as f64 * 0.1;
+            let a = omega * t;
+            pts.push((t, DVec2::new(30.0 * a.sin(), 30.0 * (1.0 - a.cos()))));
+        }
+        let (t_end, p_end) = *pts.last().unwrap();
+        let dir = DVec2::new((omega * t_end).cos(), (omega * t_end).sin());
+        for i in 1..=40 {
+            let s = (i as f64 * 0.1).min(3.0);
+            let d = 8.0 * s - 8.0 / 6.0 * s * s; // decelerate 8 -> 0 over 3 s
+            pts.push((t_end + i as f64 * 0.1, p_end + dir * d));
+        }
+        let r = Reference::new(pts).unwrap();
+        let rec = tracker_run(&r, 8.0, 0.0);
+        let errs: Vec<f64> = rec.iter().map(|s| (DVec2::new(s.state[0], s.state[1]) - s.reference).length()).collect();
+        let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
+        assert!(rms < 1.0, "rms {rms}");
+        let last = rec.last().unwrap();
+        assert!(last.state[3] < 0.5, "still moving at {} m/s", last.state[3]);
+        assert!(last.state[3] >= 0.0, "no reverse");
+        // It turned left: heading about 1.6 rad.
+        assert!((last.state[4] - omega * t_end).abs() < 0.2, "heading {}", last.state[4]);
+    }
+}

@@ -1,0 +1,83 @@
+//! Real-data tracking check: every vehicle of the two shared WOMD scenarios that moves more
+//! than 10 m is driven along its own logged trajectory (as the timed reference) by the PID and
+//! vehicle model, starting on its first logged pose and speed. Per-vehicle RMS position error
+//! over the control steps; the median must be below 1 m. The distribution is printed (and
+//! recorded in BENCHMARKS.md).
+
+use indicatif::ProgressBar;
+use scene::glam::DVec2;
+use sim::actuation::ActuationParams;
+use sim::params::VehicleParams;
+use sim::reference::Reference;
+use sim::tracker::{Tracker, TrackerConfig};
+use std::path::PathBuf;
+
+fn scenes() -> Option<Vec<scene::Scene>> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/waymo");
+    let files: Vec<PathBuf> =
+        ["motion_data_one_scenario.tfrecord", "womd_scenario_input.tfrecord"].iter().map(|f| dir.join(f)).collect();
+    if !files.iter().all(|f| f.is_file()) {
+        eprintln!("SKIP: shared WOMD data not found under {}", dir.display());
+        return None;
+    }
+    let mut out = Vec::new();
+    for f in files {
+        out.extend(ingest::read_scenes(&[f], ingest::Expect::Scenario, &ProgressBar::hidden()).unwrap());
+    }
+    Some(out)
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    let pos = q * (sorted.len() - 1) as f64;
+    let (i, f) = (pos.floor() as usize, pos.fract());
+    if i + 1 < sorted.len() {
+        sorted[i] * (1.0 - f) + sorted[i + 1] * f
+    } else {
+        sorted[i]
+    }
+}
+
+#[test]
+fn logged_vehicles_are_tracked_within_a_metre() {
+    let Some(scenes) = scenes() else { return };
+    let (cfg, veh, act) = (TrackerConfig::default(), VehicleParams::vehicle2(), ActuationParams::default());
+    let tracker = Tracker { config: &cfg, vehicle: &veh, actuation: &act };
+    let mut rms_all = Vec::new();
+    for scene in &scenes {
+        for track in scene.tracks.iter().filter(|t| t.class == scene::ObjectClass::Vehicle) {
+            for run in scene.track_segments(track) {
+                let path: f64 = run.windows(2).map(|w| w[0].position().distance(w[1].position())).sum();
+                if run.len() < 3 || path <= 10.0 {
+                    continue;
+                }
+                let reference = Reference::new(run.iter().map(|p| (p.t, p.position())).collect()).unwrap();
+                let (t0, t1) = (run[0].t, run[run.len() - 1].t);
+                let v0 = reference.velocity(t0).length();
+                let x0 = [run[0].x, run[0].y, 0.0, v0, run[0].heading, 0.0, 0.0];
+                let rec = tracker.run(&reference, x0, t0, t1, |_, _| {}).unwrap();
+                let se: f64 =
+                    rec.iter().map(|s| (DVec2::new(s.state[0], s.state[1]) - s.reference).length_squared()).sum();
+                rms_all.push(((se / rec.len() as f64).sqrt(), scene.name.clone(), track.id.clone(), path));
+            }
+        }
+    }
+    let mut rms: Vec<f64> = rms_all.iter().map(|r| r.0).collect();
+    rms.sort_by(f64::total_cmp);
+    let median = percentile(&rms, 0.5);
+    println!(
+        "vehicles {} | RMS position error (m): min {:.3} p25 {:.3} median {:.3} p75 {:.3} p90 {:.3} max {:.3}",
+        rms.len(),
+        rms[0],
+        percentile(&rms, 0.25),
+        median,
+        percentile(&rms, 0.75),
+        percentile(&rms, 0.9),
+        rms[rms.len() - 1]
+    );
+    rms_all.sort_by(|a, b| b.0.total_cmp(&a.0));
+    for (e, scene, id, path) in rms_all.iter().take(5) {
+        println!("  worst: scene {scene} track {id}: RMS {e:.3} m over a {path:.1} m path");
+    }
+    assert!(rms.len() >= 30, "expected many moving vehicles, got {}", rms.len());
+    assert!(median < 1.0, "median RMS tracking error {median} m");
+}
