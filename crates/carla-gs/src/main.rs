@@ -22,6 +22,8 @@ enum Command {
     Ingest(cmd::ingest::Args),
     /// Summarise a scene directory or a TFRecord file.
     Inspect(cmd::inspect::Args),
+    /// Choose an adversary, zone and trajectory for a dangerous behaviour (writes scenario.json).
+    Reason(cmd::reason::Args),
     /// Execute a corner-case plan with vehicle dynamics and the CARLA PID tracker.
     Simulate(cmd::simulate::Args),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Ingest(a) => cmd::ingest::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Reason(a) => cmd::reason::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Metrics(a) => cmd::metrics::run(a),
     };

@@ -3,4 +3,5 @@ pub mod ingest;
 pub mod inspect;
 pub mod metrics;
 pub mod progress;
+pub mod reason;
 pub mod simulate;

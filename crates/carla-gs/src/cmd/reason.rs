@@ -1,0 +1,156 @@
+//! `carla-gs reason <scene_dir> --t0 <s> --behavior <b|auto> --agent <...> --out scenario.json`
+use anyhow::Context;
+use reason::backend::openai::{OpenAi, OpenAiConfig};
+use reason::{Agent, Outcome, ReasonOptions};
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+pub enum AgentKind {
+    /// Deterministic search computed in code (also the repair step of LLM agents).
+    Planner,
+    /// Embedded GGUF model through llama.cpp (default model: Gemma 3 270M).
+    Local,
+    /// An OpenAI-compatible chat-completions server.
+    Openai,
+    /// The paper's rule-based baseline.
+    Rule,
+    /// The paper's random baseline (seeded).
+    Random,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+pub enum Layout {
+    Adjacent,
+    Paper,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene directory.
+    scene: PathBuf,
+    /// Analysis time t0 in seconds from the scene's first frame.
+    #[arg(long)]
+    t0: f64,
+    /// The dangerous behaviour (see `--help`), or `auto` to let the agent choose.
+    #[arg(long, default_value = "auto")]
+    behavior: String,
+    #[arg(long, value_enum, default_value = "planner")]
+    agent: AgentKind,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Where to write the plan.
+    #[arg(long)]
+    out: PathBuf,
+    /// Zone layout: ours (adjacent to the ego) or the original code's.
+    #[arg(long, value_enum, default_value = "adjacent")]
+    zones: Layout,
+    /// Waypoint spacing (s).
+    #[arg(long, default_value_t = 0.1)]
+    dt: f64,
+    /// Vehicles within this distance of the ego are considered (m).
+    #[arg(long, default_value_t = 60.0)]
+    radius: f64,
+    /// Re-prompts after an invalid LLM reply before the planner repairs it.
+    #[arg(long, default_value_t = 2)]
+    retries: usize,
+    #[arg(long, default_value_t = 0.7)]
+    temperature: f64,
+    /// GGUF model for `--agent local` (default: the one tools/setup-model.sh installs).
+    #[arg(long)]
+    model_path: Option<PathBuf>,
+    /// CPU threads for `--agent local`.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Base URL of the OpenAI-compatible server.
+    #[arg(long, default_value = "https://api.openai.com/v1")]
+    openai_url: String,
+    #[arg(long, default_value = "gpt-4o-mini")]
+    openai_model: String,
+    /// Environment variable holding the API key ("" for none).
+    #[arg(long, default_value = "OPENAI_API_KEY")]
+    openai_key_env: String,
+    /// Do not send a JSON schema (for servers without structured output).
+    #[arg(long)]
+    openai_no_schema: bool,
+    #[arg(long, default_value_t = 60)]
+    openai_timeout_s: u64,
+}
+
+pub fn parse_behavior(s: &str) -> anyhow::Result<Option<scene::Behavior>> {
+    if s == "auto" {
+        return Ok(None);
+    }
+    s.parse().map(Some).map_err(|e: String| anyhow::anyhow!("--behavior: {e}, or auto"))
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let scene = scene::load_scene(&a.scene)?;
+    let options = ReasonOptions {
+        t0: scene.frames[0].timestamp_s + a.t0,
+        behavior: parse_behavior(&a.behavior)?,
+        layout: if a.zones == Layout::Paper { scene::ZoneLayout::Paper } else { scene::ZoneLayout::Adjacent },
+        dt: a.dt,
+        seed: a.seed,
+        radius: a.radius,
+        max_retries: a.retries,
+        temperature: a.temperature,
+        ..ReasonOptions::default()
+    };
+    let mut backend: Box<dyn reason::backend::Backend> = match a.agent {
+        AgentKind::Openai => Box::new(OpenAi::new(OpenAiConfig {
+            base_url: a.openai_url.clone(),
+            model: a.openai_model.clone(),
+            api_key_env: (!a.openai_key_env.is_empty()).then(|| a.openai_key_env.clone()),
+            timeout: Duration::from_secs(a.openai_timeout_s),
+            json_schema: !a.openai_no_schema,
+            ..OpenAiConfig::default()
+        })?),
+        AgentKind::Local => local_backend(&a)?,
+        _ => Box::new(reason::backend::scripted::Scripted::new(
+            Vec::<String>::new(),
+            reason::backend::Capability::Numbers,
+        )),
+    };
+    let agent = match a.agent {
+        AgentKind::Planner => Agent::Planner,
+        AgentKind::Rule => Agent::Rule,
+        AgentKind::Random => Agent::Random,
+        AgentKind::Local | AgentKind::Openai => Agent::Llm(backend.as_mut()),
+    };
+    match reason::reason(&scene, &options, agent).context("reasoning failed")? {
+        Outcome::NoFeasible { reason } => {
+            println!("no feasible vehicle for this behaviour at t0 = {:.2} s: {reason}", a.t0);
+            Ok(())
+        }
+        Outcome::Plan { plan, stats } => {
+            scene::format::write_json_pretty(&a.out, &plan)?;
+            println!(
+                "{}: vehicle {} -> {} zone, {}, TTC {:.2} s, risk {:?}",
+                plan.agent,
+                plan.adversary_track,
+                plan.target_zone.as_str(),
+                plan.behavior.as_str(),
+                plan.ttc_s,
+                plan.risk
+            );
+            println!("reasoning: {}", plan.reasoning);
+            if let Some(s) = stats {
+                println!("validity: zone {:?}, trajectory {:?}", s.zone, s.trajectory);
+            }
+            println!("wrote {} ({} waypoints)", a.out.display(), plan.waypoints.len());
+            Ok(())
+        }
+    }
+}
+
+#[cfg(feature = "local-llm")]
+fn local_backend(a: &Args) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
+    let path = a.model_path.clone().unwrap_or_else(reason::backend::default_model_path);
+    Ok(Box::new(reason::backend::local::Local::load(&path, a.threads)?))
+}
+
+#[cfg(not(feature = "local-llm"))]
+fn local_backend(_: &Args) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
+    anyhow::bail!("this build has no embedded LLM (built without the `local-llm` feature)")
+}

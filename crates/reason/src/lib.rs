@@ -1,0 +1,155 @@
+//! `reason`: the Reason stage. A Zone agent picks the adversarial vehicle, the collision zone,
+//! TTC and risk for a dangerous behaviour; a Trajectory agent writes timed waypoints to a
+//! collision target in that zone. LLMs propose (`backend`), code checks (`reply`, `validate`) and
+//! repairs (`planner`). Baselines write the same plan format. Imports nothing of the visual half.
+
+pub mod agents;
+pub mod backend;
+pub mod baselines;
+pub mod behavior;
+pub mod planner;
+pub mod prompt;
+pub mod quintic;
+pub mod reply;
+pub mod summary;
+pub mod target;
+pub mod validate;
+pub mod world;
+
+use scene::glam::DVec2;
+use scene::plan::{Plan, PLAN_FORMAT};
+use scene::{Behavior, Scene, Waypoint, ZoneLayout};
+use serde::{Deserialize, Serialize};
+use validate::ZoneDecision;
+use world::World;
+
+#[derive(Clone, Debug)]
+pub struct ReasonOptions {
+    /// Analysis time t0 on the scene clock (s).
+    pub t0: f64,
+    /// The requested behaviour; `None` = auto (the agent chooses).
+    pub behavior: Option<Behavior>,
+    pub layout: ZoneLayout,
+    /// Waypoint spacing (s).
+    pub dt: f64,
+    pub seed: u64,
+    /// Vehicles farther than this from the ego at t0 are ignored (m).
+    pub radius: f64,
+    /// History given to the agents (s).
+    pub history_s: f64,
+    /// Re-prompts after an invalid reply before the planner repairs it.
+    pub max_retries: usize,
+    pub temperature: f64,
+}
+
+impl Default for ReasonOptions {
+    fn default() -> Self {
+        ReasonOptions {
+            t0: 0.0,
+            behavior: None,
+            layout: ZoneLayout::Adjacent,
+            dt: 0.1,
+            seed: 0,
+            radius: 60.0,
+            history_s: 2.0,
+            max_retries: 2,
+            temperature: 0.7,
+        }
+    }
+}
+
+/// How an agent's reply became valid.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Validity {
+    RawValid,
+    ValidAfterRetry { retries: usize },
+    Repaired { violations: Vec<String> },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ValidityStats {
+    pub zone: Validity,
+    pub trajectory: Validity,
+}
+
+#[derive(Clone, Debug)]
+#[allow(clippy::large_enum_variant)] // one per run; boxing buys nothing
+pub enum Outcome {
+    Plan {
+        plan: Plan,
+        stats: Option<ValidityStats>,
+    },
+    /// No vehicle can perform the behaviour here (a result, not an error).
+    NoFeasible {
+        reason: String,
+    },
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ReasonError {
+    #[error("t0 = {t0:.3} s is outside the ego's logged span [{first:.3}, {last:.3}] s")]
+    TimeOutsideScene { t0: f64, first: f64, last: f64 },
+    #[error("{0}")]
+    Options(String),
+    #[error(transparent)]
+    Backend(#[from] backend::BackendError),
+}
+
+/// Which agent writes the plan.
+pub enum Agent<'a> {
+    Planner,
+    Llm(&'a mut dyn backend::Backend),
+    Rule,
+    Random,
+}
+
+pub(crate) fn make_plan(
+    world: &World,
+    o: &ReasonOptions,
+    d: &ZoneDecision,
+    waypoints: Vec<Waypoint>,
+    target: DVec2,
+    agent: &str,
+) -> Plan {
+    let reasoning = if d.analysis.is_empty() { d.reasoning.clone() } else { format!("{} {}", d.analysis, d.reasoning) };
+    Plan {
+        format: PLAN_FORMAT.into(),
+        scene: world.scene.name.clone(),
+        behavior: d.behavior,
+        adversary_track: d.vehicle_id.clone(),
+        target_zone: d.zone,
+        zone_layout: o.layout,
+        start_time_s: world.t0,
+        ttc_s: d.ttc_s,
+        risk: d.risk,
+        agent: agent.into(),
+        reasoning,
+        dt_s: o.dt,
+        waypoints,
+        target: Some([target.x, target.y]),
+        seed: Some(o.seed),
+    }
+}
+
+/// Runs an agent at t0. Every plan returned passes `Plan::validate`.
+pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome, ReasonError> {
+    if !(o.dt > 0.0 && o.dt.is_finite() && o.radius > 0.0 && o.history_s >= 0.0) {
+        return Err(ReasonError::Options(format!(
+            "need dt > 0, radius > 0, history >= 0 (got {}, {}, {})",
+            o.dt, o.radius, o.history_s
+        )));
+    }
+    let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
+    let world = World::new(scene, o.t0, o.radius).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
+    let out = match agent {
+        Agent::Planner => agents::run_planner(&world, o),
+        Agent::Llm(b) => agents::run_llm(&world, o, b)?,
+        Agent::Rule => baselines::rule_based(&world, o),
+        Agent::Random => baselines::random(&world, o),
+    };
+    if let Outcome::Plan { plan, .. } = &out {
+        debug_assert!(plan.validate().is_ok(), "agents must return valid plans: {:?}", plan.validate());
+    }
+    Ok(out)
+}

@@ -1,0 +1,148 @@
+//! What the agents may know at the analysis time t0: the ego's logged motion (past and future,
+//! which the corner case is built against) and every other vehicle's logged past, with speeds and
+//! headings from real timestamps. All planning code reads the scene through this view.
+
+use scene::glam::DVec2;
+use scene::motion::{sample_series, Pose2};
+use scene::{ObjectClass, Scene, Track};
+
+/// A vehicle's kinematic state at one instant (world frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kin {
+    pub t: f64,
+    pub p: DVec2,
+    pub v: DVec2,
+    /// Box heading (not the velocity direction).
+    pub heading: f64,
+}
+
+impl Kin {
+    pub fn speed(&self) -> f64 {
+        self.v.length()
+    }
+}
+
+/// Velocity of a pose series at `t` by a central difference over the real timestamps of its
+/// neighbouring samples (one-sided at the ends); `None` outside the series.
+pub fn velocity_at(series: &[Pose2], t: f64) -> Option<DVec2> {
+    let (first, last) = (series.first()?, series.last()?);
+    if series.len() < 2 || t < first.t - 1e-9 || t > last.t + 1e-9 {
+        return None;
+    }
+    let h = 0.1;
+    let (ta, tb) = ((t - h).max(first.t), (t + h).min(last.t));
+    if tb - ta < 1e-6 {
+        return None;
+    }
+    let (a, b) = (sample_series(series, ta)?, sample_series(series, tb)?);
+    Some((b.position() - a.position()) / (tb - ta))
+}
+
+pub fn kin_at(series: &[Pose2], t: f64) -> Option<Kin> {
+    let p = sample_series(series, t)?;
+    Some(Kin { t, p: p.position(), v: velocity_at(series, t)?, heading: p.heading })
+}
+
+/// A vehicle other than the ego, as seen at t0.
+#[derive(Clone, Debug)]
+pub struct Vehicle {
+    pub id: String,
+    pub length: f64,
+    pub width: f64,
+    /// The logged run that contains t0 (poses up to the end of the run: planning uses only the
+    /// part up to t0; baselines and checks may look at the rest).
+    pub run: Vec<Pose2>,
+    pub now: Kin,
+}
+
+pub struct World<'a> {
+    pub scene: &'a Scene,
+    pub t0: f64,
+    pub ego_series: Vec<Pose2>,
+    pub ego_now: Kin,
+    pub ego_length: f64,
+    pub ego_width: f64,
+    /// Vehicles present at t0 within `radius` of the ego, nearest first.
+    pub vehicles: Vec<Vehicle>,
+    /// Last time with a logged ego pose.
+    pub t_last: f64,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
+    let run = scene.track_segments(track).into_iter().find(|r| r[0].t <= t0 + 1e-9 && r[r.len() - 1].t >= t0 - 1e-9)?;
+    let now = kin_at(&run, t0).or_else(|| {
+        // A run of one sample: present but with unknown speed; use the logged velocity if any.
+        let p = sample_series(&run, t0)?;
+        let v = track.valid_states().find(|s| (scene.frames[s.frame].timestamp_s - t0).abs() < 1e-6)?.velocity?;
+        Some(Kin { t: t0, p: p.position(), v: DVec2::new(v.x, v.y), heading: p.heading })
+    })?;
+    Some(Vehicle {
+        id: track.id.clone(),
+        length: median(track.valid_states().map(|s| s.size_lwh[0]).collect()),
+        width: median(track.valid_states().map(|s| s.size_lwh[1]).collect()),
+        run,
+        now,
+    })
+}
+
+impl<'a> World<'a> {
+    /// `None` if t0 is outside the ego's logged span.
+    pub fn new(scene: &'a Scene, t0: f64, radius: f64) -> Option<Self> {
+        let ego_series = scene.ego_series();
+        let ego_now = kin_at(&ego_series, t0)?;
+        let mut vehicles: Vec<Vehicle> = scene
+            .tracks
+            .iter()
+            .filter(|t| t.class == ObjectClass::Vehicle && scene.ego.track_id.as_deref() != Some(t.id.as_str()))
+            .filter_map(|t| vehicle_at(scene, t, t0))
+            .filter(|v| v.now.p.distance(ego_now.p) <= radius)
+            .collect();
+        vehicles.sort_by(|a, b| a.now.p.distance(ego_now.p).total_cmp(&b.now.p.distance(ego_now.p)));
+        let t_last = ego_series.last().map_or(t0, |p| p.t);
+        Some(World {
+            scene,
+            t0,
+            ego_now,
+            ego_length: scene.ego.size_lwh[0],
+            ego_width: scene.ego.size_lwh[1],
+            t_last,
+            ego_series,
+            vehicles,
+        })
+    }
+
+    pub fn vehicle(&self, id: &str) -> Option<&Vehicle> {
+        self.vehicles.iter().find(|v| v.id == id)
+    }
+
+    /// The ego's logged pose at `t` (clamped to its span).
+    pub fn ego_pose(&self, t: f64) -> Pose2 {
+        let t = t.clamp(self.ego_series[0].t, self.t_last);
+        sample_series(&self.ego_series, t).expect("clamped into the series span")
+    }
+
+    pub fn ego_kin(&self, t: f64) -> Kin {
+        let t = t.clamp(self.ego_series[0].t, self.t_last);
+        kin_at(&self.ego_series, t).unwrap_or(Kin {
+            t,
+            p: self.ego_pose(t).position(),
+            v: DVec2::ZERO,
+            heading: self.ego_pose(t).heading,
+        })
+    }
+
+    /// The longest TTC a plan may use: the ego must be logged at t0 + TTC.
+    pub fn horizon(&self) -> f64 {
+        self.t_last - self.t0
+    }
+
+    /// `p` in the ego frame at t0.
+    pub fn to_ego_now(&self, p: DVec2) -> DVec2 {
+        Pose2 { t: self.t0, x: self.ego_now.p.x, y: self.ego_now.p.y, heading: self.ego_now.heading }.to_local(p)
+    }
+}
