@@ -26,6 +26,8 @@ enum Command {
     Reason(cmd::reason::Args),
     /// Execute a corner-case plan with vehicle dynamics and the CARLA PID tracker.
     Simulate(cmd::simulate::Args),
+    /// Reason -> simulate -> measure over scenes x behaviours x t0 x agents; Tables I and II, plots.
+    EvalCases(cmd::eval_cases::Args),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
     Metrics(cmd::metrics::Args),
 }
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Reason(a) => cmd::reason::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Metrics(a) => cmd::metrics::run(a),
+        Command::EvalCases(a) => cmd::eval_cases::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

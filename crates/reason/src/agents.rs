@@ -179,7 +179,7 @@ pub fn run_llm(world: &World, o: &ReasonOptions, backend: &mut dyn Backend) -> R
         }
         let user = format!(
             "{}\nFeasible choices (vehicle behaviour zone): {}.",
-            zone_user(world, o.layout, o.behavior, &summary),
+            zone_user(world, o.layout, o.behavior, &summary, o.feedback.as_deref()),
             choices.join("; ")
         );
         chat.ask(zone_system(true), user, schema, "zone", o.max_retries, |text| {
@@ -217,7 +217,7 @@ pub fn run_llm(world: &World, o: &ReasonOptions, backend: &mut dyn Backend) -> R
         );
         chat.ask(
             zone_system(false),
-            zone_user(world, o.layout, o.behavior, &summary),
+            zone_user(world, o.layout, o.behavior, &summary, o.feedback.as_deref()),
             schema,
             "zone",
             o.max_retries,

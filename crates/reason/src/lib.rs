@@ -40,6 +40,8 @@ pub struct ReasonOptions {
     /// Re-prompts after an invalid reply before the planner repairs it.
     pub max_retries: usize,
     pub temperature: f64,
+    /// Outcome of a previous attempt, appended to the Zone agent's prompt (closed-loop refinement).
+    pub feedback: Option<String>,
 }
 
 impl Default for ReasonOptions {
@@ -54,6 +56,7 @@ impl Default for ReasonOptions {
             history_s: 2.0,
             max_retries: 2,
             temperature: 0.7,
+            feedback: None,
         }
     }
 }

@@ -69,11 +69,11 @@ pub fn center_ttc(p_ego: DVec2, v_ego: DVec2, p_adv: DVec2, v_adv: DVec2) -> f64
 
 /// The adversary's velocity when it reaches `target`, from the behaviour's end policy and the
 /// ego's logged state `ego` at that time: close in on the ego at `|target - ego| / AIM_TTC_S`.
-pub fn end_velocity(policy: EndPolicy, ego: &Kin, target: DVec2, adversary: &Vehicle) -> DVec2 {
+pub fn end_velocity(policy: EndPolicy, ego: &Kin, target: DVec2, adversary: &Vehicle, aim_ttc: f64) -> DVec2 {
     let h = DVec2::new(ego.heading.cos(), ego.heading.sin());
     let v_e = ego.v.dot(h).max(0.0);
     let gap = target.distance(ego.p);
-    let closing = (gap / AIM_TTC_S).clamp(2.0, 15.0);
+    let closing = (gap / aim_ttc).clamp(2.0, 15.0);
     match policy {
         EndPolicy::SlowerAhead => h * (v_e - closing).max(0.0),
         EndPolicy::FasterBehind => h * (v_e + closing),
@@ -94,9 +94,22 @@ pub fn trajectory_to(
     ttc: f64,
     dt: f64,
 ) -> Option<(Vec<Waypoint>, f64, f64)> {
+    trajectory_to_aim(world, v, b, target, ttc, dt, AIM_TTC_S)
+}
+
+/// [`trajectory_to`] with the closing rate aimed at centre TTC `aim_ttc` at the target.
+pub fn trajectory_to_aim(
+    world: &World,
+    v: &Vehicle,
+    b: Behavior,
+    target: DVec2,
+    ttc: f64,
+    dt: f64,
+    aim_ttc: f64,
+) -> Option<(Vec<Waypoint>, f64, f64)> {
     let t_end = world.t0 + ttc;
     let ego_end = world.ego_kin(t_end);
-    let v_end = end_velocity(spec(b).end_policy, &ego_end, target, v);
+    let v_end = end_velocity(spec(b).end_policy, &ego_end, target, v, aim_ttc);
     let q =
         Quintic::new(End { p: v.now.p, v: v.now.v, a: DVec2::ZERO }, End { p: target, v: v_end, a: DVec2::ZERO }, ttc);
     let waypoints = q.waypoints(world.t0, dt);

@@ -62,13 +62,25 @@ Pick the other vehicle that can most plausibly perform the dangerous behaviour, 
     s
 }
 
-pub fn zone_user(world: &World, layout: ZoneLayout, behavior: Option<Behavior>, summary: &str) -> String {
-    format!(
+pub fn zone_user(
+    world: &World,
+    layout: ZoneLayout,
+    behavior: Option<Behavior>,
+    summary: &str,
+    feedback: Option<&str>,
+) -> String {
+    let mut s = format!(
         "{}\n{}\n{summary}\nThe log continues {:.1} s after t0, so ttc_s must be at most that.",
         behaviours_text(behavior),
         zones_text(world, layout),
         world.horizon()
-    )
+    );
+    if let Some(f) = feedback {
+        s.push_str("\nA previous attempt was executed in the physics simulator: ");
+        s.push_str(f);
+        s.push_str("\nChange your choice so that the vehicle reaches the zone with a time to collision below 1 s.");
+    }
+    s
 }
 
 pub fn trajectory_system() -> String {

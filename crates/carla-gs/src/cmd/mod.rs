@@ -1,4 +1,5 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
+pub mod eval_cases;
 pub mod ingest;
 pub mod inspect;
 pub mod metrics;

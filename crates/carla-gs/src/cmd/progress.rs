@@ -12,3 +12,15 @@ pub fn bytes_bar(message: &'static str) -> ProgressBar {
     pb.set_message(message);
     pb
 }
+
+/// A counting bar for work items.
+pub fn count_bar(message: &'static str) -> ProgressBar {
+    let pb = ProgressBar::new(0);
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb.set_message(message);
+    pb
+}

@@ -144,13 +144,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
 }
 
-#[cfg(feature = "local-llm")]
 fn local_backend(a: &Args) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
-    let path = a.model_path.clone().unwrap_or_else(reason::backend::default_model_path);
-    Ok(Box::new(reason::backend::local::Local::load(&path, a.threads)?))
+    load_local(a.model_path.clone(), a.threads)
+}
+
+/// The embedded LLM (default model unless `path` is given).
+#[cfg(feature = "local-llm")]
+pub fn load_local(path: Option<PathBuf>, threads: usize) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
+    let path = path.unwrap_or_else(reason::backend::default_model_path);
+    Ok(Box::new(reason::backend::local::Local::load(&path, threads)?))
 }
 
 #[cfg(not(feature = "local-llm"))]
-fn local_backend(_: &Args) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
+pub fn load_local(_: Option<PathBuf>, _: usize) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
     anyhow::bail!("this build has no embedded LLM (built without the `local-llm` feature)")
 }

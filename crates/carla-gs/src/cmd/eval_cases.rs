@@ -1,0 +1,93 @@
+//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --out <dir>`
+use cases::runner::CaseConfig;
+use cases::spec::{AgentName, T0Spec};
+use cases::EvalConfig;
+use reason::backend::openai::{OpenAi, OpenAiConfig};
+use reason::ReasonOptions;
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene directories.
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Comma-separated agents: planner, local, openai, rule, random.
+    #[arg(long, default_value = "planner,local,rule,random")]
+    agents: String,
+    /// `all` or comma-separated behaviours.
+    #[arg(long, default_value = "all")]
+    behaviors: String,
+    /// `every:<s>s` (from <s> while 3 s of log remain) or a comma-separated list of seconds.
+    #[arg(long, default_value = "every:1s")]
+    t0: String,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Closed-loop refinement rounds (0 = off).
+    #[arg(long, default_value_t = 3)]
+    refine_rounds: usize,
+    /// Skip the per-case PNG plots.
+    #[arg(long)]
+    no_plots: bool,
+    /// GGUF model for the local agent.
+    #[arg(long)]
+    model_path: Option<PathBuf>,
+    /// CPU threads for the local agent.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    #[arg(long, default_value = "https://api.openai.com/v1")]
+    openai_url: String,
+    #[arg(long, default_value = "gpt-4o-mini")]
+    openai_model: String,
+    #[arg(long, default_value = "OPENAI_API_KEY")]
+    openai_key_env: String,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let scenes = a.scenes.iter().map(|d| scene::load_scene(d)).collect::<Result<Vec<_>, _>>()?;
+    let agents: Vec<AgentName> =
+        a.agents.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?;
+    let behaviors: Vec<scene::Behavior> = if a.behaviors == "all" {
+        scene::Behavior::ALL.to_vec()
+    } else {
+        a.behaviors.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?
+    };
+    let t0: T0Spec = a.t0.parse().map_err(anyhow::Error::msg)?;
+    let cfg = EvalConfig {
+        agents,
+        behaviors,
+        t0,
+        seed: a.seed,
+        out: a.out.clone(),
+        plots: !a.no_plots,
+        case: CaseConfig {
+            reason: ReasonOptions::default(),
+            rollout: sim::RolloutConfig::default(),
+            refine_rounds: a.refine_rounds,
+            simulate: Box::new(sim::simulate),
+        },
+    };
+    let (model_path, threads) = (a.model_path.clone(), a.threads);
+    let openai = OpenAiConfig {
+        base_url: a.openai_url.clone(),
+        model: a.openai_model.clone(),
+        api_key_env: (!a.openai_key_env.is_empty()).then(|| a.openai_key_env.clone()),
+        timeout: Duration::from_secs(60),
+        ..OpenAiConfig::default()
+    };
+    let factory = move |agent: AgentName| -> Result<Box<dyn reason::backend::Backend>, String> {
+        match agent {
+            AgentName::Local => super::reason::load_local(model_path.clone(), threads).map_err(|e| format!("{e:#}")),
+            AgentName::Openai => OpenAi::new(openai.clone()).map(|b| Box::new(b) as _).map_err(|e| e.to_string()),
+            other => Err(format!("{} needs no backend", other.as_str())),
+        }
+    };
+    let pb = super::progress::count_bar("cases");
+    let report = cases::run_eval(&scenes, &cfg, &factory, &pb)?;
+    pb.finish_and_clear();
+    println!("{}", cases::summary_markdown(&report));
+    println!("wrote {}/summary.md, table1.{{md,csv}}, table2.{{md,csv}}, report.json and cases/", a.out.display());
+    Ok(())
+}

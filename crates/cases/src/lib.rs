@@ -1,0 +1,227 @@
+//! `cases`: the evaluation harness behind `carla-gs eval-cases`. For every scene x behaviour x
+//! analysis time x agent: reason -> simulate -> measure, with closed-loop refinement (`runner`);
+//! then the paper's Table I and Table II (`tables`) as Markdown, CSV and JSON, per-case files and
+//! plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
+//! results do not depend on the thread count (every case has its own seed).
+
+pub mod plots;
+pub mod runner;
+pub mod spec;
+pub mod tables;
+
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+use reason::backend::Backend;
+use runner::{run_case, CaseConfig, CaseResult, Status};
+use scene::{Behavior, Executed, Scene};
+use serde::{Deserialize, Serialize};
+use spec::{enumerate, AgentName, CaseSpec, T0Spec};
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub type BackendFactory = dyn Fn(AgentName) -> Result<Box<dyn Backend>, String>;
+
+pub struct EvalConfig {
+    pub agents: Vec<AgentName>,
+    pub behaviors: Vec<Behavior>,
+    pub t0: T0Spec,
+    pub seed: u64,
+    pub out: PathBuf,
+    pub plots: bool,
+    pub case: CaseConfig,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct AgentTiming {
+    pub agent: AgentName,
+    pub cases: usize,
+    pub wall_s: f64,
+    pub cases_per_s: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Failure {
+    pub case: String,
+    pub stage: String,
+    pub reason: String,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Report {
+    pub scenes: Vec<String>,
+    pub seed: u64,
+    pub refine_rounds: usize,
+    pub table1: Vec<tables::Table1Row>,
+    pub table2: Vec<tables::Table2Row>,
+    pub validity: Vec<tables::ValidityRow>,
+    pub failures: Vec<Failure>,
+    pub timing: Vec<AgentTiming>,
+    pub plot_errors: Vec<String>,
+    pub cases: Vec<CaseResult>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error("{0}")]
+    Backend(String),
+    #[error(transparent)]
+    Output(#[from] scene::SceneError),
+}
+
+/// Writes one case's files: plan, executed trajectory, rounds and metrics, plots.
+fn write_case(
+    dir: &Path,
+    scene: &Scene,
+    r: &CaseResult,
+    executed: Option<&Executed>,
+    plots: bool,
+) -> Result<Vec<String>, scene::SceneError> {
+    let d = dir.join(r.spec.id());
+    scene::format::write_json_pretty(&d.join("case.json"), r)?;
+    let mut errors = Vec::new();
+    if let (Some(round), Some(e)) = (r.best(), executed) {
+        scene::format::write_json_pretty(&d.join("scenario.json"), &round.plan)?;
+        scene::format::write_json_pretty(&d.join("executed.json"), e)?;
+        if plots {
+            if let Err(x) = plots::bev(&d.join("bev.png"), scene, &round.plan, e, &round.metrics) {
+                errors.push(format!("{}: bev: {x}", r.spec.id()));
+            }
+            if let Err(x) = plots::tracking(&d.join("tracking.png"), &round.plan, e) {
+                errors.push(format!("{}: tracking: {x}", r.spec.id()));
+            }
+        }
+    }
+    Ok(errors)
+}
+
+/// Runs every case and writes the report under `cfg.out`.
+pub fn run_eval(
+    scenes: &[Scene],
+    cfg: &EvalConfig,
+    backends: &BackendFactory,
+    progress: &ProgressBar,
+) -> Result<Report, EvalError> {
+    let all = enumerate(scenes, &cfg.behaviors, &cfg.t0, &cfg.agents, cfg.seed);
+    progress.set_length(all.len() as u64);
+    let case_dir = cfg.out.join("cases");
+    let mut results: Vec<(usize, CaseResult)> = Vec::new();
+    let mut timing = Vec::new();
+    let mut plot_errors = Vec::new();
+    for agent in &cfg.agents {
+        let mine: Vec<(usize, &CaseSpec)> = all.iter().enumerate().filter(|(_, c)| c.agent == *agent).collect();
+        let start = Instant::now();
+        let run_one = |spec: &CaseSpec, backend: Option<&mut dyn Backend>| {
+            let scene = &scenes[spec.scene_index];
+            let (r, e) = run_case(scene, spec, &cfg.case, backend);
+            let errs = write_case(&case_dir, scene, &r, e.as_ref(), cfg.plots);
+            progress.inc(1);
+            (r, errs)
+        };
+        type Done = (usize, (CaseResult, Result<Vec<String>, scene::SceneError>));
+        let out: Vec<Done> = if agent.is_llm() {
+            let mut b = backends(*agent).map_err(EvalError::Backend)?;
+            mine.iter().map(|(i, s)| (*i, run_one(s, Some(b.as_mut())))).collect()
+        } else {
+            mine.par_iter().map(|(i, s)| (*i, run_one(s, None))).collect()
+        };
+        let wall = start.elapsed().as_secs_f64();
+        timing.push(AgentTiming {
+            agent: *agent,
+            cases: mine.len(),
+            wall_s: wall,
+            cases_per_s: mine.len() as f64 / wall.max(1e-9),
+        });
+        for (i, (r, errs)) in out {
+            plot_errors.extend(errs?);
+            results.push((i, r));
+        }
+    }
+    results.sort_by_key(|(i, _)| *i);
+    let cases: Vec<CaseResult> = results.into_iter().map(|(_, r)| r).collect();
+    let failures = cases
+        .iter()
+        .filter_map(|r| match &r.status {
+            Status::Failed { stage, reason } => {
+                Some(Failure { case: r.spec.id(), stage: stage.clone(), reason: reason.clone() })
+            }
+            _ => None,
+        })
+        .collect();
+    let report = Report {
+        scenes: scenes.iter().map(|s| s.name.clone()).collect(),
+        seed: cfg.seed,
+        refine_rounds: cfg.case.refine_rounds,
+        table1: tables::table1(&cases, &cfg.agents),
+        table2: tables::table2(&cases, &cfg.agents),
+        validity: tables::validity(&cases, &cfg.agents),
+        failures,
+        timing,
+        plot_errors,
+        cases,
+    };
+    write_report(&cfg.out, &report, cfg.plots)?;
+    Ok(report)
+}
+
+/// The summary in Markdown: tables, validity, refinement effect, failures, timing.
+pub fn summary_markdown(r: &Report) -> String {
+    let mut s = format!(
+        "# Corner-case evaluation\n\nScenes: {}. Seed {}. Refinement rounds: {}.\n\n",
+        r.scenes.join(", "),
+        r.seed,
+        r.refine_rounds
+    );
+    s.push_str("## Table I: controllability and success\n\nMean ± std over the cases that produced a plan. `as planned`: the agent's first plan; `refined`: the best round of closed-loop refinement.\n\n");
+    s.push_str(&tables::table1_markdown(&r.table1));
+    s.push_str("\n## Table II: feasibility and ride comfort (agent waypoints vs executed)\n\n");
+    s.push_str(&tables::table2_markdown(&r.table2));
+    if !r.validity.is_empty() {
+        s.push_str("\n## Validity of LLM replies\n\n| agent | zone raw-valid | zone valid after retry | zone repaired | trajectory raw-valid | trajectory after retry | trajectory repaired |\n|---|---|---|---|---|---|---|\n");
+        for v in &r.validity {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                v.agent.map_or("", |a| a.as_str()),
+                v.zone[0],
+                v.zone[1],
+                v.zone[2],
+                v.trajectory[0],
+                v.trajectory[1],
+                v.trajectory[2]
+            );
+        }
+    }
+    s.push_str("\n## Failures\n\n");
+    if r.failures.is_empty() {
+        s.push_str("None.\n");
+    }
+    for f in &r.failures {
+        let _ = writeln!(s, "- `{}` ({}): {}", f.case, f.stage, f.reason);
+    }
+    s.push_str("\n## Timing\n\n| agent | cases | wall (s) | cases/s |\n|---|---|---|---|\n");
+    for t in &r.timing {
+        let _ = writeln!(s, "| {} | {} | {:.2} | {:.2} |", t.agent.as_str(), t.cases, t.wall_s, t.cases_per_s);
+    }
+    if !r.plot_errors.is_empty() {
+        let _ = writeln!(s, "\n{} plots could not be drawn; first: {}", r.plot_errors.len(), r.plot_errors[0]);
+    }
+    s
+}
+
+fn write_report(out: &Path, r: &Report, plots: bool) -> Result<(), EvalError> {
+    let w = |name: &str, text: String| scene::write_file_atomic(&out.join(name), text.as_bytes());
+    w("table1.md", tables::table1_markdown(&r.table1))?;
+    w("table1.csv", tables::table1_csv(&r.table1))?;
+    w("table2.md", tables::table2_markdown(&r.table2))?;
+    w("table2.csv", tables::table2_csv(&r.table2))?;
+    w("summary.md", summary_markdown(r))?;
+    scene::format::write_json_pretty(&out.join("report.json"), r)?;
+    if plots {
+        // A missing font must not lose the tables: the summary says so.
+        if let Err(e) = plots::table1_bars(&out.join("table1.png"), &r.table1) {
+            tracing::warn!("table1.png: {e}");
+        }
+    }
+    Ok(())
+}

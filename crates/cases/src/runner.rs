@@ -1,0 +1,220 @@
+//! One case end to end: reason -> simulate -> measure, then closed-loop refinement while the
+//! executed trajectory misses the zone or MinTTC >= 1 s (up to `refine_rounds` times):
+//! * planner: round 1 aims the target ahead of the observed end-point error (pre-compensation)
+//!   and closes in harder (aimed TTC 0.3 s); later rounds take the next-ranked candidate;
+//! * LLM agents: the Zone agent is asked again with the executed outcome (closest distance, where
+//!   the adversary was relative to the ego, the zone it reached, MinTTC) in its prompt.
+//!
+//! The best round (zone hit, then success, then lower MinTTC) is the refined result; round 0 is
+//! reported separately. Errors of any stage end the case as a failure with its reason.
+
+use crate::spec::{AgentName, CaseSpec};
+use metrics::CaseMetrics;
+use reason::backend::Backend;
+use reason::planner::{search, trajectory_to_aim};
+use reason::world::World;
+use reason::{Agent, Outcome, ReasonOptions, ValidityStats};
+use scene::glam::DVec2;
+use scene::zones::zone_rect;
+use scene::{Executed, Plan, Scene, Zone};
+use serde::{Deserialize, Serialize};
+use sim::{RolloutConfig, SimError};
+
+/// The physics stage as a function (tests substitute a failing one).
+pub type SimulateFn = dyn Fn(&Scene, &Plan, &RolloutConfig) -> Result<Executed, SimError> + Sync + Send;
+
+pub struct CaseConfig {
+    pub reason: ReasonOptions,
+    pub rollout: RolloutConfig,
+    pub refine_rounds: usize,
+    pub simulate: Box<SimulateFn>,
+}
+
+/// One executed attempt.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Round {
+    pub plan: Plan,
+    pub metrics: CaseMetrics,
+    pub validity: Option<ValidityStats>,
+    /// How this round's plan was made (`agent`, `pre-compensated target`, `next candidate`, `agent with feedback`).
+    pub how: String,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "status")]
+pub enum Status {
+    Done { rounds: Vec<Round>, best: usize },
+    NoFeasible { reason: String },
+    Failed { stage: String, reason: String },
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CaseResult {
+    pub spec: CaseSpec,
+    #[serde(flatten)]
+    pub status: Status,
+}
+
+impl CaseResult {
+    pub fn first(&self) -> Option<&Round> {
+        match &self.status {
+            Status::Done { rounds, .. } => rounds.first(),
+            _ => None,
+        }
+    }
+
+    pub fn best(&self) -> Option<&Round> {
+        match &self.status {
+            Status::Done { rounds, best } => rounds.get(*best),
+            _ => None,
+        }
+    }
+}
+
+fn good(m: &CaseMetrics) -> bool {
+    m.zone_hit && m.success_center
+}
+
+fn rank(m: &CaseMetrics) -> (bool, bool, f64) {
+    (m.zone_hit, m.success_center, -m.min_ttc_center_s)
+}
+
+/// The zone (if any) containing a point of the ego frame.
+pub fn zone_of(local: DVec2, plan: &Plan, l: f64, w: f64) -> Option<Zone> {
+    Zone::ALL.into_iter().find(|z| zone_rect(*z, plan.zone_layout, l, w).contains(local))
+}
+
+fn feedback(plan: &Plan, e: &Executed, m: &CaseMetrics) -> String {
+    let [l, w, _] = e.ego.size_lwh;
+    let local = DVec2::new(m.adversary_in_ego_frame[0], m.adversary_in_ego_frame[1]);
+    let reached = zone_of(local, plan, l, w).map_or("no zone".to_string(), |z| format!("the {} zone", z.as_str()));
+    format!(
+        "vehicle {} aiming at the {} zone with TTC {:.1} s came closest to the ego ({:.1} m) at t0 + {:.1} s, at ({:.1}, {:.1}) m in the ego frame, i.e. in {reached}; the minimum time to collision was {:.2} s.",
+        plan.adversary_track,
+        plan.target_zone.as_str(),
+        plan.ttc_s,
+        m.min_distance_m,
+        m.t_min_distance_s - plan.start_time_s,
+        local.x,
+        local.y,
+        m.min_ttc_center_s
+    )
+}
+
+/// The planner's refinement for round `r` (1-based); `None` if it has nothing new to try.
+fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &Executed) -> Option<(Plan, String)> {
+    let world = World::new(scene, last.start_time_s, o.radius)?;
+    if r == 1 {
+        let target = DVec2::from(last.target?);
+        let end = e.steps.last()?;
+        let aim = target + (target - DVec2::new(end.x, end.y));
+        let v = world.vehicle(&last.adversary_track)?;
+        let (waypoints, _, _) = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?;
+        let plan = Plan {
+            waypoints,
+            reasoning: format!("{} (refined: target pre-compensated by the executed end-point error)", last.reasoning),
+            ..last.clone()
+        };
+        return Some((plan, "pre-compensated target".into()));
+    }
+    let ranked = search(&world, last.behavior, o.layout, o.dt, o.seed).ok()?;
+    let c = ranked.get(r - 1)?;
+    let plan = Plan {
+        adversary_track: c.vehicle_id.clone(),
+        target_zone: c.zone,
+        ttc_s: c.ttc_s,
+        risk: c.risk(),
+        waypoints: c.waypoints.clone(),
+        target: Some([c.target.x, c.target.y]),
+        reasoning: format!("refined: candidate ranked {r} by the planner"),
+        ..last.clone()
+    };
+    Some((plan, format!("candidate ranked {r}")))
+}
+
+fn reason_once(
+    scene: &Scene,
+    o: &ReasonOptions,
+    agent: AgentName,
+    backend: Option<&mut dyn Backend>,
+) -> Result<Outcome, String> {
+    let a = match (agent, backend) {
+        (AgentName::Planner, _) => Agent::Planner,
+        (AgentName::Rule, _) => Agent::Rule,
+        (AgentName::Random, _) => Agent::Random,
+        (_, Some(b)) => Agent::Llm(b),
+        (_, None) => return Err(format!("agent {} needs a backend", agent.as_str())),
+    };
+    reason::reason(scene, o, a).map_err(|e| e.to_string())
+}
+
+/// Runs one case. `backend` is the LLM for LLM agents.
+pub fn run_case(
+    scene: &Scene,
+    spec: &CaseSpec,
+    cfg: &CaseConfig,
+    mut backend: Option<&mut dyn Backend>,
+) -> (CaseResult, Option<Executed>) {
+    let o = ReasonOptions {
+        t0: scene.frames[0].timestamp_s + spec.t0_s,
+        behavior: Some(spec.behavior),
+        seed: spec.seed,
+        ..cfg.reason.clone()
+    };
+    let fail = |stage: &str, reason: String| {
+        (CaseResult { spec: spec.clone(), status: Status::Failed { stage: stage.into(), reason } }, None)
+    };
+    let (mut plan, mut validity) =
+        match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+            Err(e) => return fail("reason", e),
+            Ok(Outcome::NoFeasible { reason }) => {
+                return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
+            }
+            Ok(Outcome::Plan { plan, stats }) => (plan, stats),
+        };
+    let mut how = "agent".to_string();
+    let mut rounds: Vec<Round> = Vec::new();
+    let mut best_exec: Option<Executed> = None;
+    for r in 0..=cfg.refine_rounds {
+        let executed = match (cfg.simulate)(scene, &plan, &cfg.rollout) {
+            Ok(e) => e,
+            Err(e) => return fail("simulate", format!("round {r}: {e}")),
+        };
+        let m = match metrics::evaluate(&executed) {
+            Ok(m) => m,
+            Err(e) => return fail("metrics", format!("round {r}: {e}")),
+        };
+        let improved = rounds.iter().all(|x| rank(&m) > rank(&x.metrics));
+        let done = good(&m);
+        let next = (!done && spec.agent.refines() && r < cfg.refine_rounds)
+            .then(|| (feedback(&plan, &executed, &m), plan.clone()));
+        rounds.push(Round { plan: plan.clone(), metrics: m, validity: validity.clone(), how: how.clone() });
+        if improved {
+            best_exec = Some(executed.clone());
+        }
+        let Some((fb, last)) = next else { break };
+        // Next round's plan.
+        let refined = if spec.agent.is_llm() {
+            let o2 = ReasonOptions { feedback: Some(fb), seed: spec.seed.wrapping_add(r as u64 + 1), ..o.clone() };
+            match reason_once(scene, &o2, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+                Ok(Outcome::Plan { plan, stats }) => Some((plan, stats, "agent with feedback".to_string())),
+                Ok(Outcome::NoFeasible { .. }) => None,
+                Err(e) => return fail("reason", format!("refinement round {}: {e}", r + 1)),
+            }
+        } else {
+            refine_planner(scene, &o, r + 1, &last, &executed).map(|(p, h)| (p, None, h))
+        };
+        match refined {
+            Some((p, v, h)) => {
+                plan = p;
+                validity = v;
+                how = h;
+            }
+            None => break,
+        }
+    }
+    let best = (0..rounds.len())
+        .max_by(|a, b| rank(&rounds[*a].metrics).partial_cmp(&rank(&rounds[*b].metrics)).unwrap().then(b.cmp(a)))
+        .unwrap_or(0);
+    (CaseResult { spec: spec.clone(), status: Status::Done { rounds, best } }, best_exec)
+}

@@ -1,0 +1,259 @@
+//! The paper's tables from case results.
+//! * Table I (controllability): per agent, Zone Hit, Success and MinTTC as mean +- std (population
+//!   std, like numpy), with centre-TTC and box-TTC columns, once as planned (round 0) and once
+//!   after closed-loop refinement (best round) for agents that refine.
+//! * Table II (comfort): per agent, |a_lat|95, |kappa_dot|95 and ComfortViol of the agent's raw
+//!   waypoints vs the physically executed trajectory (round 0).
+//! * Validity of LLM replies (raw-valid, valid after retry, repaired), case counts, failures.
+
+use crate::runner::{CaseResult, Round, Status};
+use crate::spec::AgentName;
+use reason::Validity;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write;
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Stat {
+    pub mean: f64,
+    pub std: f64,
+    pub n: usize,
+}
+
+pub fn stat(v: &[f64]) -> Option<Stat> {
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
+    Some(Stat { mean, std: var.sqrt(), n: v.len() })
+}
+
+fn fmt(s: &Option<Stat>, digits: usize) -> String {
+    s.map_or("-".into(), |s| format!("{:.*} ± {:.*}", digits, s.mean, digits, s.std))
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Table1Row {
+    pub agent: AgentName,
+    pub variant: String,
+    pub cases: usize,
+    pub no_feasible: usize,
+    pub failed: usize,
+    pub zone_hit: Option<Stat>,
+    pub zone_hit_paper_axes: Option<Stat>,
+    pub success_center: Option<Stat>,
+    pub min_ttc_center_s: Option<Stat>,
+    pub success_box: Option<Stat>,
+    pub min_ttc_box_s: Option<Stat>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Table2Row {
+    pub agent: AgentName,
+    pub cases: usize,
+    pub a_lat_p95_raw: Option<Stat>,
+    pub a_lat_p95_executed: Option<Stat>,
+    pub kappa_dot_p95_raw: Option<Stat>,
+    pub kappa_dot_p95_executed: Option<Stat>,
+    pub comfort_viol_raw: Option<Stat>,
+    pub comfort_viol_executed: Option<Stat>,
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct ValidityRow {
+    pub agent: Option<AgentName>,
+    /// raw-valid, valid after retry, repaired
+    pub zone: [usize; 3],
+    pub trajectory: [usize; 3],
+}
+
+fn b(x: bool) -> f64 {
+    if x {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+fn row1(
+    agent: AgentName,
+    variant: &str,
+    results: &[&CaseResult],
+    pick: impl Fn(&CaseResult) -> Option<&Round>,
+) -> Table1Row {
+    let rounds: Vec<&Round> = results.iter().filter_map(|r| pick(r)).collect();
+    let col = |f: &dyn Fn(&Round) -> f64| stat(&rounds.iter().map(|r| f(r)).collect::<Vec<_>>());
+    Table1Row {
+        agent,
+        variant: variant.into(),
+        cases: rounds.len(),
+        no_feasible: results.iter().filter(|r| matches!(r.status, Status::NoFeasible { .. })).count(),
+        failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. })).count(),
+        zone_hit: col(&|r| b(r.metrics.zone_hit)),
+        zone_hit_paper_axes: col(&|r| b(r.metrics.zone_hit_paper_axes)),
+        success_center: col(&|r| b(r.metrics.success_center)),
+        min_ttc_center_s: col(&|r| r.metrics.min_ttc_center_s),
+        success_box: col(&|r| b(r.metrics.success_box)),
+        min_ttc_box_s: col(&|r| r.metrics.min_ttc_box_s),
+    }
+}
+
+pub fn table1(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table1Row> {
+    let mut rows = Vec::new();
+    for a in agents {
+        let mine: Vec<&CaseResult> = results.iter().filter(|r| r.spec.agent == *a).collect();
+        rows.push(row1(*a, "as planned", &mine, |r| r.first()));
+        if a.refines() {
+            rows.push(row1(*a, "refined", &mine, |r| r.best()));
+        }
+    }
+    rows
+}
+
+pub fn table2(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table2Row> {
+    agents
+        .iter()
+        .map(|a| {
+            let rounds: Vec<&Round> = results.iter().filter(|r| r.spec.agent == *a).filter_map(|r| r.first()).collect();
+            let col = |f: &dyn Fn(&Round) -> Option<f64>| stat(&rounds.iter().filter_map(|r| f(r)).collect::<Vec<_>>());
+            Table2Row {
+                agent: *a,
+                cases: rounds.len(),
+                a_lat_p95_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.a_lat_p95)),
+                a_lat_p95_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.a_lat_p95)),
+                kappa_dot_p95_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.kappa_dot_p95)),
+                kappa_dot_p95_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.kappa_dot_p95)),
+                comfort_viol_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.comfort_viol_pct)),
+                comfort_viol_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.comfort_viol_pct)),
+            }
+        })
+        .collect()
+}
+
+fn slot(v: &Validity) -> usize {
+    match v {
+        Validity::RawValid => 0,
+        Validity::ValidAfterRetry { .. } => 1,
+        Validity::Repaired { .. } => 2,
+    }
+}
+
+/// Validity of every LLM reply chain (first attempts and refinement rounds), per agent.
+pub fn validity(results: &[CaseResult], agents: &[AgentName]) -> Vec<ValidityRow> {
+    agents
+        .iter()
+        .filter(|a| a.is_llm())
+        .map(|a| {
+            let mut row = ValidityRow { agent: Some(*a), ..Default::default() };
+            for r in results.iter().filter(|r| r.spec.agent == *a) {
+                if let Status::Done { rounds, .. } = &r.status {
+                    for v in rounds.iter().filter_map(|x| x.validity.as_ref()) {
+                        row.zone[slot(&v.zone)] += 1;
+                        row.trajectory[slot(&v.trajectory)] += 1;
+                    }
+                }
+            }
+            row
+        })
+        .collect()
+}
+
+pub fn table1_markdown(rows: &[Table1Row]) -> String {
+    let mut s = String::from("| agent | variant | cases | no feasible | failed | Zone Hit | Success (centre TTC < 1 s) | MinTTC centre (s) | Success (box TTC < 1 s) | MinTTC box (s) | Zone Hit, paper axes |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.agent.as_str(),
+            r.variant,
+            r.cases,
+            r.no_feasible,
+            r.failed,
+            fmt(&r.zone_hit, 3),
+            fmt(&r.success_center, 3),
+            fmt(&r.min_ttc_center_s, 3),
+            fmt(&r.success_box, 3),
+            fmt(&r.min_ttc_box_s, 3),
+            fmt(&r.zone_hit_paper_axes, 3)
+        );
+    }
+    s
+}
+
+pub fn table2_markdown(rows: &[Table2Row]) -> String {
+    let mut s = String::from("| agent | cases | \\|a_lat\\|95 raw (m/s²) | \\|a_lat\\|95 executed | \\|κ̇\\|95 raw (1/(m s)) | \\|κ̇\\|95 executed | ComfortViol raw (%) | ComfortViol executed |\n|---|---|---|---|---|---|---|---|\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.agent.as_str(),
+            r.cases,
+            fmt(&r.a_lat_p95_raw, 2),
+            fmt(&r.a_lat_p95_executed, 2),
+            fmt(&r.kappa_dot_p95_raw, 3),
+            fmt(&r.kappa_dot_p95_executed, 3),
+            fmt(&r.comfort_viol_raw, 2),
+            fmt(&r.comfort_viol_executed, 2)
+        );
+    }
+    s
+}
+
+fn csv_stat(s: &Option<Stat>) -> String {
+    s.map_or(",".into(), |s| format!("{},{}", s.mean, s.std))
+}
+
+pub fn table1_csv(rows: &[Table1Row]) -> String {
+    let mut s = String::from("agent,variant,cases,no_feasible,failed,zone_hit_mean,zone_hit_std,success_center_mean,success_center_std,min_ttc_center_mean,min_ttc_center_std,success_box_mean,success_box_std,min_ttc_box_mean,min_ttc_box_std,zone_hit_paper_axes_mean,zone_hit_paper_axes_std\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{}",
+            r.agent.as_str(),
+            r.variant,
+            r.cases,
+            r.no_feasible,
+            r.failed,
+            csv_stat(&r.zone_hit),
+            csv_stat(&r.success_center),
+            csv_stat(&r.min_ttc_center_s),
+            csv_stat(&r.success_box),
+            csv_stat(&r.min_ttc_box_s),
+            csv_stat(&r.zone_hit_paper_axes)
+        );
+    }
+    s
+}
+
+pub fn table2_csv(rows: &[Table2Row]) -> String {
+    let mut s = String::from("agent,cases,a_lat_p95_raw_mean,a_lat_p95_raw_std,a_lat_p95_executed_mean,a_lat_p95_executed_std,kappa_dot_p95_raw_mean,kappa_dot_p95_raw_std,kappa_dot_p95_executed_mean,kappa_dot_p95_executed_std,comfort_viol_raw_mean,comfort_viol_raw_std,comfort_viol_executed_mean,comfort_viol_executed_std\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{}",
+            r.agent.as_str(),
+            r.cases,
+            csv_stat(&r.a_lat_p95_raw),
+            csv_stat(&r.a_lat_p95_executed),
+            csv_stat(&r.kappa_dot_p95_raw),
+            csv_stat(&r.kappa_dot_p95_executed),
+            csv_stat(&r.comfort_viol_raw),
+            csv_stat(&r.comfort_viol_executed)
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn population_std_like_numpy() {
+        // numpy.std([0, 1, 1, 1]) = 0.4330127...
+        let s = stat(&[0.0, 1.0, 1.0, 1.0]).unwrap();
+        assert!((s.mean - 0.75).abs() < 1e-12 && (s.std - 0.4330127018922193).abs() < 1e-12);
+        assert!(stat(&[]).is_none());
+    }
+}
