@@ -101,7 +101,10 @@ fn feedback(plan: &Plan, e: &Executed, m: &CaseMetrics) -> String {
     )
 }
 
-/// The planner's refinement for round `r` (1-based); `None` if it has nothing new to try.
+/// Planner refinement strategies: 1 = pre-compensated target, k >= 2 = the k-th ranked candidate.
+const MAX_PLANNER_STRATEGY: usize = 8;
+
+/// The planner's refinement strategy `r` (1-based); `None` if it has nothing to offer.
 fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &Executed) -> Option<(Plan, String)> {
     let world = World::new(scene, last.start_time_s, o.radius)?;
     if r == 1 {
@@ -109,7 +112,7 @@ fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &E
         let end = e.steps.last()?;
         let aim = target + (target - DVec2::new(end.x, end.y));
         let v = world.vehicle(&last.adversary_track)?;
-        let (waypoints, _, _) = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?;
+        let waypoints = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?.waypoints;
         let plan = Plan {
             waypoints,
             reasoning: format!("{} (refined: target pre-compensated by the executed end-point error)", last.reasoning),
@@ -173,6 +176,7 @@ pub fn run_case(
             Ok(Outcome::Plan { plan, stats }) => (plan, stats),
         };
     let mut how = "agent".to_string();
+    let mut strategy = 1; // the planner's next refinement strategy
     let mut rounds: Vec<Round> = Vec::new();
     let mut best_exec: Option<Executed> = None;
     for r in 0..=cfg.refine_rounds {
@@ -193,7 +197,7 @@ pub fn run_case(
             best_exec = Some(executed.clone());
         }
         let Some((fb, last)) = next else { break };
-        // Next round's plan.
+        // Next round's plan: the next strategy that yields one.
         let refined = if spec.agent.is_llm() {
             let o2 = ReasonOptions { feedback: Some(fb), seed: spec.seed.wrapping_add(r as u64 + 1), ..o.clone() };
             match reason_once(scene, &o2, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
@@ -202,7 +206,13 @@ pub fn run_case(
                 Err(e) => return fail("reason", format!("refinement round {}: {e}", r + 1)),
             }
         } else {
-            refine_planner(scene, &o, r + 1, &last, &executed).map(|(p, h)| (p, None, h))
+            let tried: Vec<&Plan> = rounds.iter().map(|x| &x.plan).collect();
+            (strategy..=MAX_PLANNER_STRATEGY).find_map(|k| {
+                strategy = k + 1;
+                refine_planner(scene, &o, k, &last, &executed)
+                    .filter(|(p, _)| !tried.contains(&p))
+                    .map(|(p, h)| (p, None, h))
+            })
         };
         match refined {
             Some((p, v, h)) => {

@@ -291,7 +291,7 @@ pub fn run_llm(world: &World, o: &ReasonOptions, backend: &mut dyn Backend) -> R
         match r {
             Ok((w, validity)) => (w, target, validity),
             Err(v) => match trajectory_to(world, &vehicle, decision.behavior, target, decision.ttc_s, o.dt) {
-                Some((w, _, _)) => (w, target, repaired(&v)),
+                Some(p) => (p.waypoints, target, repaired(&v)),
                 None => {
                     decision = decision_of(world, &best);
                     (best.waypoints.clone(), best.target, repaired(&v))

@@ -91,6 +91,49 @@ pub fn limits(w: &[Waypoint]) -> Limits {
     Limits { max_speed: max(&v), max_accel: max(&a), max_jerk: max(&j), reversal }
 }
 
+/// Whether a car could follow waypoints: it never moves backwards relative to `heading0` (its
+/// body heading at the start), and its yaw rate and path curvature (from the direction of
+/// successive finite-difference velocities, where speed > 1 m/s) stay within bounds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Trackability {
+    pub backward: bool,
+    pub max_yaw_rate: f64,
+    pub max_curvature: f64,
+    /// Largest |d curvature / dt| (1/(m s)): what the steering-rate limit bounds.
+    pub max_curvature_rate: f64,
+}
+
+pub fn trackability(w: &[Waypoint], heading0: f64) -> Trackability {
+    let h0 = DVec2::new(heading0.cos(), heading0.sin());
+    let v: Vec<(DVec2, f64)> = w
+        .windows(2)
+        .map(|p| (DVec2::new(p[1].x - p[0].x, p[1].y - p[0].y) / (p[1].t - p[0].t), p[1].t - p[0].t))
+        .collect();
+    let backward = v.iter().any(|(v, _)| v.length() > 0.3 && v.dot(h0) < 0.0);
+    let (mut yaw, mut curv, mut curv_rate) = (0.0f64, 0.0f64, 0.0f64);
+    // Signed curvature between successive velocity samples; its rate only where the speed is
+    // above 2 m/s (below that, finite differences at dt are too noisy to judge steering).
+    let mut last: Option<f64> = None;
+    for p in v.windows(2) {
+        let ((a, dt), (b, _)) = (p[0], p[1]);
+        if a.length() > 1.0 && b.length() > 1.0 {
+            let dpsi = a.perp_dot(b).atan2(a.dot(b));
+            let k = dpsi / (0.5 * (a.length() + b.length()) * dt);
+            yaw = yaw.max(dpsi.abs() / dt);
+            curv = curv.max(k.abs());
+            if a.length() > 2.0 && b.length() > 2.0 {
+                if let Some(l) = last {
+                    curv_rate = curv_rate.max((k - l).abs() / dt);
+                }
+                last = Some(k);
+            } else {
+                last = None;
+            }
+        }
+    }
+    Trackability { backward, max_yaw_rate: yaw, max_curvature: curv, max_curvature_rate: curv_rate }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -113,6 +156,21 @@ mod tests {
         let w = q.waypoints(5.0, 0.1);
         assert_eq!(w.len(), 31);
         assert!((w[30].t - 8.0).abs() < 1e-9 && (DVec2::new(w[30].x, w[30].y) - end.p).length() < 1e-12);
+    }
+
+    #[test]
+    fn trackability_of_turns_and_reversals() {
+        // 10 m/s on a 20 m radius: yaw rate 0.5 rad/s, curvature 0.05 1/m.
+        let w: Vec<Waypoint> = (0..=30)
+            .map(|k| {
+                let a = 0.5 * k as f64 * 0.1;
+                Waypoint { t: k as f64 * 0.1, x: 20.0 * a.sin(), y: 20.0 * (1.0 - a.cos()) }
+            })
+            .collect();
+        let t = trackability(&w, 0.0);
+        assert!(!t.backward && (t.max_yaw_rate - 0.5).abs() < 1e-3 && (t.max_curvature - 0.05).abs() < 1e-3, "{t:?}");
+        // The same path against a body facing the other way is backwards.
+        assert!(trackability(&w, std::f64::consts::PI).backward);
     }
 
     #[test]

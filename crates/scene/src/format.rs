@@ -29,6 +29,28 @@ pub fn lidar_rel_path(frame: usize) -> String {
     format!("{LIDAR_DIR}/{frame:06}.bin")
 }
 
+/// Scene directories at `path`: itself if it holds `scene.json`, else its sub-directories that
+/// do (sorted), e.g. the output of ingesting a file of several WOMD scenarios.
+pub fn find_scene_dirs(path: &Path) -> Result<Vec<std::path::PathBuf>, SceneError> {
+    if path.join(SCENE_FILE).is_file() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    let mut dirs: Vec<std::path::PathBuf> = std::fs::read_dir(path)
+        .map_err(|e| SceneError::io(path, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join(SCENE_FILE).is_file())
+        .collect();
+    dirs.sort();
+    if dirs.is_empty() {
+        return Err(SceneError::Invalid {
+            file: path.to_path_buf(),
+            field: String::new(),
+            message: "no scene.json here or in its sub-directories".into(),
+        });
+    }
+    Ok(dirs)
+}
+
 /// Loads and validates `<dir>/scene.json` (and checks that referenced files exist).
 pub fn load_scene(dir: &Path) -> Result<Scene, SceneError> {
     let file = dir.join(SCENE_FILE);

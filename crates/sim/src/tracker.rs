@@ -5,7 +5,8 @@
 //! Target speed (m/s, converted to km/h only at the PID boundary):
 //! `max(0, |v_ref(t + dt)| + position_gain * ((p_ref(t) - p) . tangent))`: the reference's own
 //! speed one control period ahead, plus a correction for being behind or ahead along the path.
-//! The lateral target is [`Reference::lookahead`].
+//! The lateral target is [`Reference::lookahead`], or straight ahead while the reference stands
+//! still (no steering wind-up at standstill).
 
 use crate::actuation::{ActuationParams, Control};
 use crate::model::{derivative, rk4_step, stable_step, State};
@@ -14,6 +15,10 @@ use crate::pid::{to_carla, ControllerLimits, PidGains, VehiclePidController};
 use crate::reference::Reference;
 use scene::glam::DVec2;
 use serde::{Deserialize, Serialize};
+
+/// Below this much reference motion over the look-ahead time the reference counts as standing
+/// still (m).
+pub const STANDSTILL_M: f64 = 0.3;
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrackerConfig {
@@ -113,7 +118,13 @@ impl Tracker<'_> {
             let heading = DVec2::new(x[4].cos(), x[4].sin());
             let tangent = v_ref.try_normalize().unwrap_or(heading);
             let target_speed = (v_ref.length() + c.position_gain * (reference.position(t) - pos).dot(tangent)).max(0.0);
-            let wp = reference.lookahead(t, pos, c.lookahead_s, c.lookahead_min_m);
+            // While the reference stands still (a parked car before its manoeuvre), aim straight
+            // ahead: steering towards a far-future point at standstill would wind the wheels up.
+            let wp = if reference.position(t + c.lookahead_s).distance(reference.position(t)) < STANDSTILL_M {
+                pos + heading * c.lookahead_min_m
+            } else {
+                reference.lookahead(t, pos, c.lookahead_s, c.lookahead_min_m)
+            };
             let wp_c = to_carla(wp.x, wp.y, 0.0);
             let control =
                 pid.run_step(target_speed * 3.6, x[3].abs() * 3.6, &to_carla(x[0], x[1], x[4]), (wp_c.x, wp_c.y));
@@ -163,6 +174,25 @@ mod tests {
         let p0 = reference.position(reference.start_time());
         let x0 = [p0.x, p0.y, 0.0, v0, heading, 0.0, 0.0];
         tr.run(reference, x0, reference.start_time(), reference.end_time(), |_, _| {}).unwrap()
+    }
+
+    #[test]
+    fn no_steering_wind_up_while_parked() {
+        // Parked for 2 s, then drive off along a 30-degree left diagonal: the wheels stay straight
+        // while parked and the car then follows the diagonal.
+        let mut pts: Vec<(f64, DVec2)> = (0..20).map(|i| (i as f64 * 0.1, DVec2::ZERO)).collect();
+        let dir = DVec2::new(30f64.to_radians().cos(), 30f64.to_radians().sin());
+        for i in 0..=40 {
+            let s = 0.5 * 2.0 * (i as f64 * 0.1).powi(2) / 2.0;
+            pts.push((2.0 + i as f64 * 0.1, dir * s));
+        }
+        let r = Reference::new(pts).unwrap();
+        let rec = tracker_run(&r, 0.0, 0.0);
+        let parked = rec.iter().filter(|s| s.t < 1.5).map(|s| s.state[2].abs()).fold(0.0, f64::max);
+        assert!(parked < 1e-9, "wheels turned {parked} rad while parked");
+        let last = rec.last().unwrap();
+        let err = (DVec2::new(last.state[0], last.state[1]) - last.reference).length();
+        assert!(err < 1.5, "end error {err} m");
     }
 
     #[test]

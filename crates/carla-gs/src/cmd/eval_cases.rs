@@ -9,7 +9,7 @@ use std::time::Duration;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene directories.
+    /// Scene directories (or directories of scene directories).
     #[arg(required = true)]
     scenes: Vec<PathBuf>,
     /// Comma-separated agents: planner, local, openai, rule, random.
@@ -46,7 +46,11 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let scenes = a.scenes.iter().map(|d| scene::load_scene(d)).collect::<Result<Vec<_>, _>>()?;
+    let mut dirs = Vec::new();
+    for d in &a.scenes {
+        dirs.extend(scene::format::find_scene_dirs(d)?);
+    }
+    let scenes = dirs.iter().map(|d| scene::load_scene(d)).collect::<Result<Vec<_>, _>>()?;
     let agents: Vec<AgentName> =
         a.agents.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?;
     let behaviors: Vec<scene::Behavior> = if a.behaviors == "all" {

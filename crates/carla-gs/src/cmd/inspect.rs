@@ -1,7 +1,6 @@
 //! `carla-gs inspect <scene_dir|tfrecord> [--json]`
-use anyhow::Context;
 use scene::SceneSummary;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -12,24 +11,9 @@ pub struct Args {
     json: bool,
 }
 
-/// Scene directories at `path`: itself if it holds `scene.json`, else its children that do.
-fn scene_dirs(path: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    if path.join(scene::format::SCENE_FILE).is_file() {
-        return Ok(vec![path.to_path_buf()]);
-    }
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(path)
-        .with_context(|| format!("{}: cannot read directory", path.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join(scene::format::SCENE_FILE).is_file())
-        .collect();
-    dirs.sort();
-    anyhow::ensure!(!dirs.is_empty(), "{}: no scene.json here or in its sub-directories", path.display());
-    Ok(dirs)
-}
-
 pub fn run(a: Args) -> anyhow::Result<()> {
     let summaries: Vec<SceneSummary> = if a.path.is_dir() {
-        scene_dirs(&a.path)?
+        scene::format::find_scene_dirs(&a.path)?
             .iter()
             .map(|d| scene::load_scene(d).map(|s| SceneSummary::of(&s)))
             .collect::<Result<_, _>>()?
