@@ -5,18 +5,8 @@ use ingest::proto::Frame;
 use ingest::tfrecord::{write_record, TfRecordReader};
 use prost::Message;
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
-
-fn data(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/waymo").join(name);
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("SKIP: {} not found (shared data folder absent)", p.display());
-        None
-    }
-}
 
 fn carla_gs(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
@@ -62,7 +52,7 @@ fn write_tfrecord(path: &Path, records: &[Vec<u8>]) {
 
 #[test]
 fn waymo_frame_ingest_and_inspect() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("scene");
     let out = carla_gs(&["ingest", s(&input), "--out", s(&dir)]);
@@ -92,7 +82,7 @@ fn womd_scenarios_ingest() {
     for (name, tracks, distance) in
         [("motion_data_one_scenario.tfrecord", 83, 0.0), ("womd_scenario_input.tfrecord", 257, 26.0)]
     {
-        let Some(input) = data(name) else { return };
+        let Some(input) = ingest::shared::waymo_file(name) else { return };
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("scene");
         let out = carla_gs(&["ingest", s(&input), "--out", s(&dir)]);
@@ -115,7 +105,10 @@ fn womd_scenarios_ingest() {
 
 #[test]
 fn womd_file_with_several_scenarios_writes_one_scene_each() {
-    let (Some(a), Some(b)) = (data("motion_data_one_scenario.tfrecord"), data("womd_scenario_input.tfrecord")) else {
+    let (Some(a), Some(b)) = (
+        ingest::shared::waymo_file("motion_data_one_scenario.tfrecord"),
+        ingest::shared::waymo_file("womd_scenario_input.tfrecord"),
+    ) else {
         return;
     };
     let tmp = tempfile::tempdir().unwrap();
@@ -137,7 +130,7 @@ fn womd_file_with_several_scenarios_writes_one_scene_each() {
 
 #[test]
 fn multi_file_segment_is_sorted_and_duplicates_rejected() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let mut later = Frame::decode(&frame_record(&input)[..]).unwrap();
     later.timestamp_micros = Some(later.timestamp_micros.unwrap() + 100_000);
@@ -170,7 +163,7 @@ fn empty_file_is_rejected() {
 
 #[test]
 fn truncated_record_is_rejected() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let p = tmp.path().join("cut.tfrecord");
     let bytes = std::fs::read(&input).unwrap();
@@ -180,7 +173,7 @@ fn truncated_record_is_rejected() {
 
 #[test]
 fn flipped_byte_fails_the_crc() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let p = tmp.path().join("flip.tfrecord");
     let mut bytes = std::fs::read(&input).unwrap();
@@ -204,7 +197,7 @@ fn record_of_another_kind_is_rejected() {
 
 #[test]
 fn image_without_calibration_is_rejected() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let mut frame = Frame::decode(&frame_record(&input)[..]).unwrap();
     frame.context.as_mut().unwrap().camera_calibrations.retain(|c| c.name != Some(4)); // drop SIDE_LEFT
@@ -215,7 +208,7 @@ fn image_without_calibration_is_rejected() {
 
 #[test]
 fn corrupt_scene_json_names_the_field() {
-    let Some(input) = data("pvps_data_one_frame.tfrecord") else { return };
+    let Some(input) = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("scene");
     assert!(carla_gs(&["ingest", s(&input), "--out", s(&dir)]).status.success());

@@ -17,11 +17,7 @@ fn s(p: &Path) -> &str {
 
 /// Ingests the moving-ego WOMD scenario into `dir/scene`; `None` (skip) without shared data.
 fn scene_dir(dir: &Path) -> Option<PathBuf> {
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/waymo/womd_scenario_input.tfrecord");
-    if !input.is_file() {
-        eprintln!("SKIP: {} not found (shared data folder absent)", input.display());
-        return None;
-    }
+    let input = ingest::shared::waymo_file("womd_scenario_input.tfrecord")?;
     let out = dir.join("scene");
     assert!(carla_gs(&["ingest", s(&input), "--out", s(&out)]).status.success());
     Some(out)

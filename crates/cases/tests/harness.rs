@@ -8,22 +8,7 @@ use cases::spec::{AgentName, T0Spec};
 use cases::{run_eval, EvalConfig, Report};
 use indicatif::ProgressBar;
 use reason::ReasonOptions;
-use std::path::{Path, PathBuf};
-
-fn scenes() -> Option<Vec<scene::Scene>> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/waymo");
-    let files: Vec<PathBuf> =
-        ["motion_data_one_scenario.tfrecord", "womd_scenario_input.tfrecord"].iter().map(|f| dir.join(f)).collect();
-    if !files.iter().all(|f| f.is_file()) {
-        eprintln!("SKIP: shared WOMD data not found under {}", dir.display());
-        return None;
-    }
-    let mut out = Vec::new();
-    for f in files {
-        out.extend(ingest::read_scenes(&[f], ingest::Expect::Scenario, &ProgressBar::hidden()).unwrap());
-    }
-    Some(out)
-}
+use std::path::Path;
 
 fn config(out: &Path, simulate: Box<cases::runner::SimulateFn>, plots: bool) -> EvalConfig {
     EvalConfig {
@@ -56,7 +41,7 @@ fn case_json(r: &Report, id: &str) -> String {
 
 #[test]
 fn tables_plots_determinism_and_failures() {
-    let Some(scenes) = scenes() else { return };
+    let Some(scenes) = ingest::shared::womd_scenes() else { return };
     let tmp = tempfile::tempdir().unwrap();
     let a = run(&scenes, &tmp.path().join("a"), Box::new(sim::simulate), true);
     assert_eq!(a.cases.len(), 2 * 8 * 2 * 3);

@@ -9,6 +9,7 @@ pub mod detect;
 pub mod error;
 pub mod proto;
 pub mod range_image;
+pub mod shared;
 pub mod tfrecord;
 pub mod waymo_frame;
 pub mod womd;

@@ -3,8 +3,6 @@
 //! that ingest stored in the scene, reproduce the frame's own `projected_lidar_labels` boxes.
 //! A second test checks that the scene's world-frame tracks map back onto the labels.
 
-mod common;
-
 use indicatif::ProgressBar;
 use ingest::proto::{label, Frame, Label};
 use ingest::tfrecord::TfRecordReader;
@@ -15,7 +13,7 @@ use scene::Scene;
 use std::path::PathBuf;
 
 fn load() -> Option<(Scene, Frame)> {
-    let path: PathBuf = common::waymo_file("pvps_data_one_frame.tfrecord")?;
+    let path: PathBuf = ingest::shared::waymo_file("pvps_data_one_frame.tfrecord")?;
     let mut scenes =
         ingest::read_scenes(std::slice::from_ref(&path), ingest::Expect::Auto, &ProgressBar::hidden()).unwrap();
     let record = TfRecordReader::new(std::fs::File::open(&path).unwrap()).next().unwrap().unwrap();

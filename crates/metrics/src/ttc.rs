@@ -15,19 +15,9 @@ use scene::motion::Pose2;
 
 pub const TTC_CAP_S: f64 = 5.0;
 
-/// Paper centre TTC for one instant (capped).
+/// Paper centre TTC for one instant, capped at [`TTC_CAP_S`] (`scene::motion::center_ttc`).
 pub fn center_ttc(p_ego: DVec2, v_ego: DVec2, p_adv: DVec2, v_adv: DVec2) -> f64 {
-    let r = p_adv - p_ego;
-    let d = r.length();
-    if d == 0.0 {
-        return 0.0;
-    }
-    let closing = -r.dot(v_adv - v_ego) / d;
-    if closing > 0.0 {
-        (d / closing).min(TTC_CAP_S)
-    } else {
-        TTC_CAP_S
-    }
+    scene::motion::center_ttc(p_ego, v_ego, p_adv, v_adv, TTC_CAP_S)
 }
 
 /// A box footprint: pose and (length, width).

@@ -90,17 +90,7 @@ impl Candidate {
 
 /// Paper centre TTC (capped at 5 s) for one instant.
 pub fn center_ttc(p_ego: DVec2, v_ego: DVec2, p_adv: DVec2, v_adv: DVec2) -> f64 {
-    let r = p_adv - p_ego;
-    let d = r.length();
-    if d == 0.0 {
-        return 0.0;
-    }
-    let closing = -r.dot(v_adv - v_ego) / d;
-    if closing > 0.0 {
-        (d / closing).min(5.0)
-    } else {
-        5.0
-    }
+    scene::motion::center_ttc(p_ego, v_ego, p_adv, v_adv, 5.0)
 }
 
 /// The adversary's velocity when it reaches `target`, from the behaviour's end policy and the

@@ -8,8 +8,6 @@
 //!   --test local_llm -- --ignored --nocapture`; the counts are in BENCHMARKS.md).
 #![cfg(feature = "local-llm")]
 
-mod common;
-
 use reason::backend::local::Local;
 use reason::{reason, Agent, Outcome, ReasonOptions, Validity};
 use scene::Behavior;
@@ -45,7 +43,8 @@ static LLM: std::sync::Mutex<()> = std::sync::Mutex::new(());
 fn sweep(times: &[f64], only: Option<&str>) -> Option<Counts> {
     let _turn = LLM.lock().unwrap_or_else(|e| e.into_inner());
     let mut local = model()?;
-    let scenes: Vec<_> = common::womd_scenes()?.into_iter().filter(|s| only.is_none_or(|n| s.name == n)).collect();
+    let scenes: Vec<_> =
+        ingest::shared::womd_scenes()?.into_iter().filter(|s| only.is_none_or(|n| s.name == n)).collect();
     let mut c = Counts::default();
     for scene in &scenes {
         for b in Behavior::ALL {
@@ -91,11 +90,11 @@ fn local_agent_plans_or_says_why_not() {
 fn local_agent_is_deterministic_given_the_seed() {
     let _turn = LLM.lock().unwrap_or_else(|e| e.into_inner());
     let Some(mut local) = model() else { return };
-    let Some(scenes) = common::womd_scenes() else { return };
+    let Some(scenes) = ingest::shared::womd_scenes() else { return };
     let s = scenes.iter().find(|s| s.name == "637f20cafde22ff8").unwrap();
     let o = ReasonOptions {
         t0: s.frames[0].timestamp_s + 2.0,
-        behavior: Some(Behavior::SuddenCutIn),
+        behavior: Some(Behavior::SidePass),
         seed: 3,
         ..Default::default()
     };

@@ -1,14 +1,12 @@
 //! Acceptance sweep for the planner: both shared WOMD scenes, every behaviour, t0 = 1..6 s. Every
 //! run gives a plan that passes validation or a "no feasible vehicle" result with a reason.
 
-mod common;
-
 use reason::{reason, Agent, Outcome, ReasonOptions};
 use scene::Behavior;
 
 #[test]
 fn planner_always_plans_or_says_why_not() {
-    let Some(scenes) = common::womd_scenes() else { return };
+    let Some(scenes) = ingest::shared::womd_scenes() else { return };
     let (mut plans, mut none) = (0, 0);
     for scene in &scenes {
         for b in Behavior::ALL {

@@ -54,6 +54,23 @@ impl Pose2 {
     }
 }
 
+/// The paper's centre time to collision at constant velocity, capped at `cap` seconds:
+/// `r = p_adv - p_ego`, `closing = -(r . (v_adv - v_ego)) / |r|`, `TTC = |r| / closing` if
+/// `closing > 0`, else `cap` (0 if the centres coincide).
+pub fn center_ttc(p_ego: DVec2, v_ego: DVec2, p_adv: DVec2, v_adv: DVec2, cap: f64) -> f64 {
+    let r = p_adv - p_ego;
+    let d = r.length();
+    if d == 0.0 {
+        return 0.0;
+    }
+    let closing = -r.dot(v_adv - v_ego) / d;
+    if closing > 0.0 {
+        (d / closing).min(cap)
+    } else {
+        cap
+    }
+}
+
 /// Samples a time-sorted pose series at `t`; `None` outside its span.
 pub fn sample_series(series: &[Pose2], t: f64) -> Option<Pose2> {
     let first = series.first()?;

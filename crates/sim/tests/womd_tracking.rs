@@ -4,28 +4,11 @@
 //! over the control steps; the median must be below 1 m. The distribution is printed (and
 //! recorded in BENCHMARKS.md).
 
-use indicatif::ProgressBar;
 use scene::glam::DVec2;
 use sim::actuation::ActuationParams;
 use sim::params::VehicleParams;
 use sim::reference::Reference;
 use sim::tracker::{Tracker, TrackerConfig};
-use std::path::PathBuf;
-
-fn scenes() -> Option<Vec<scene::Scene>> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/waymo");
-    let files: Vec<PathBuf> =
-        ["motion_data_one_scenario.tfrecord", "womd_scenario_input.tfrecord"].iter().map(|f| dir.join(f)).collect();
-    if !files.iter().all(|f| f.is_file()) {
-        eprintln!("SKIP: shared WOMD data not found under {}", dir.display());
-        return None;
-    }
-    let mut out = Vec::new();
-    for f in files {
-        out.extend(ingest::read_scenes(&[f], ingest::Expect::Scenario, &ProgressBar::hidden()).unwrap());
-    }
-    Some(out)
-}
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
     let pos = q * (sorted.len() - 1) as f64;
@@ -39,7 +22,7 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 
 #[test]
 fn logged_vehicles_are_tracked_within_a_metre() {
-    let Some(scenes) = scenes() else { return };
+    let Some(scenes) = ingest::shared::womd_scenes() else { return };
     let (cfg, veh, act) = (TrackerConfig::default(), VehicleParams::vehicle2(), ActuationParams::default());
     let tracker = Tracker { config: &cfg, vehicle: &veh, actuation: &act };
     let mut rms_all = Vec::new();

@@ -2,10 +2,8 @@
 use cases::runner::CaseConfig;
 use cases::spec::{AgentName, T0Spec};
 use cases::EvalConfig;
-use reason::backend::openai::{OpenAi, OpenAiConfig};
 use reason::ReasonOptions;
 use std::path::PathBuf;
-use std::time::Duration;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -31,18 +29,8 @@ pub struct Args {
     /// Skip the per-case PNG plots.
     #[arg(long)]
     no_plots: bool,
-    /// GGUF model for the local agent.
-    #[arg(long)]
-    model_path: Option<PathBuf>,
-    /// CPU threads for the local agent.
-    #[arg(long, default_value_t = 2)]
-    threads: usize,
-    #[arg(long, default_value = "https://api.openai.com/v1")]
-    openai_url: String,
-    #[arg(long, default_value = "gpt-4o-mini")]
-    openai_model: String,
-    #[arg(long, default_value = "OPENAI_API_KEY")]
-    openai_key_env: String,
+    #[command(flatten)]
+    llm: super::llm::LlmArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -73,18 +61,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             simulate: Box::new(sim::simulate),
         },
     };
-    let (model_path, threads) = (a.model_path.clone(), a.threads);
-    let openai = OpenAiConfig {
-        base_url: a.openai_url.clone(),
-        model: a.openai_model.clone(),
-        api_key_env: (!a.openai_key_env.is_empty()).then(|| a.openai_key_env.clone()),
-        timeout: Duration::from_secs(60),
-        ..OpenAiConfig::default()
-    };
+    let llm = a.llm.clone();
     let factory = move |agent: AgentName| -> Result<Box<dyn reason::backend::Backend>, String> {
         match agent {
-            AgentName::Local => super::reason::load_local(model_path.clone(), threads).map_err(|e| format!("{e:#}")),
-            AgentName::Openai => OpenAi::new(openai.clone()).map(|b| Box::new(b) as _).map_err(|e| e.to_string()),
+            AgentName::Local => llm.local().map_err(|e| format!("{e:#}")),
+            AgentName::Openai => llm.openai().map_err(|e| format!("{e:#}")),
             other => Err(format!("{} needs no backend", other.as_str())),
         }
     };

@@ -2,6 +2,7 @@
 pub mod eval_cases;
 pub mod ingest;
 pub mod inspect;
+pub mod llm;
 pub mod metrics;
 pub mod progress;
 pub mod reason;

@@ -1,9 +1,7 @@
 //! `carla-gs reason <scene_dir> --t0 <s> --behavior <b|auto> --agent <...> --out scenario.json`
 use anyhow::Context;
-use reason::backend::openai::{OpenAi, OpenAiConfig};
 use reason::{Agent, Outcome, ReasonOptions};
 use std::path::PathBuf;
-use std::time::Duration;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
 pub enum AgentKind {
@@ -56,25 +54,8 @@ pub struct Args {
     retries: usize,
     #[arg(long, default_value_t = 0.7)]
     temperature: f64,
-    /// GGUF model for `--agent local` (default: the one tools/setup-model.sh installs).
-    #[arg(long)]
-    model_path: Option<PathBuf>,
-    /// CPU threads for `--agent local`.
-    #[arg(long, default_value_t = 2)]
-    threads: usize,
-    /// Base URL of the OpenAI-compatible server.
-    #[arg(long, default_value = "https://api.openai.com/v1")]
-    openai_url: String,
-    #[arg(long, default_value = "gpt-4o-mini")]
-    openai_model: String,
-    /// Environment variable holding the API key ("" for none).
-    #[arg(long, default_value = "OPENAI_API_KEY")]
-    openai_key_env: String,
-    /// Do not send a JSON schema (for servers without structured output).
-    #[arg(long)]
-    openai_no_schema: bool,
-    #[arg(long, default_value_t = 60)]
-    openai_timeout_s: u64,
+    #[command(flatten)]
+    llm: super::llm::LlmArgs,
 }
 
 pub fn parse_behavior(s: &str) -> anyhow::Result<Option<scene::Behavior>> {
@@ -98,15 +79,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ..ReasonOptions::default()
     };
     let mut backend: Box<dyn reason::backend::Backend> = match a.agent {
-        AgentKind::Openai => Box::new(OpenAi::new(OpenAiConfig {
-            base_url: a.openai_url.clone(),
-            model: a.openai_model.clone(),
-            api_key_env: (!a.openai_key_env.is_empty()).then(|| a.openai_key_env.clone()),
-            timeout: Duration::from_secs(a.openai_timeout_s),
-            json_schema: !a.openai_no_schema,
-            ..OpenAiConfig::default()
-        })?),
-        AgentKind::Local => local_backend(&a)?,
+        AgentKind::Openai => a.llm.openai()?,
+        AgentKind::Local => a.llm.local()?,
         _ => Box::new(reason::backend::scripted::Scripted::new(
             Vec::<String>::new(),
             reason::backend::Capability::Numbers,
@@ -142,20 +116,4 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Ok(())
         }
     }
-}
-
-fn local_backend(a: &Args) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
-    load_local(a.model_path.clone(), a.threads)
-}
-
-/// The embedded LLM (default model unless `path` is given).
-#[cfg(feature = "local-llm")]
-pub fn load_local(path: Option<PathBuf>, threads: usize) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
-    let path = path.unwrap_or_else(reason::backend::default_model_path);
-    Ok(Box::new(reason::backend::local::Local::load(&path, threads)?))
-}
-
-#[cfg(not(feature = "local-llm"))]
-pub fn load_local(_: Option<PathBuf>, _: usize) -> anyhow::Result<Box<dyn reason::backend::Backend>> {
-    anyhow::bail!("this build has no embedded LLM (built without the `local-llm` feature)")
 }
