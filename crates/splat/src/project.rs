@@ -1,0 +1,121 @@
+//! EWA projection of 3D Gaussians into a camera (all in f64; the model stores f32).
+//!
+//! For a Gaussian with mean `m`, rotation `R_g`, scales `s` (exp of the log-scales):
+//! `p = camera_from_world * m` (OpenCV axes); culled unless `near < p.z < far`.
+//! `Sigma3 = R_g diag(s^2) R_g^T`, `W` = the camera's rotation,
+//! `J = [[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]]` with `x/z` and `y/z` clamped to 1.3x the
+//! field of view on each side of the principal point (as gsplat does, for stability off-screen), `Sigma2 = J W Sigma3 W^T J^T`.
+//! Low-pass: `Sigma2 += 0.3 I`; in antialiased mode the opacity is multiplied by
+//! `sqrt(det Sigma2_before / det Sigma2_after)`. The screen radius is where alpha would fall
+//! below 1/255: `r = sqrt(2 ln(255 o) lambda_max)`, so no pixel beyond it can contribute and the
+//! tiled renderer equals a per-pixel brute-force one.
+
+use crate::camera::Camera;
+use crate::gaussians::{sigmoid, Gaussians};
+use crate::sh::basis;
+
+pub const EPS2D: f64 = 0.3;
+pub const ALPHA_MIN: f64 = 1.0 / 255.0;
+
+/// A Gaussian on screen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projected {
+    pub index: usize,
+    /// Pixel coordinates of the mean (pixel centres at integer + 0.5).
+    pub mean: [f64; 2],
+    /// Inverse 2D covariance `[a, b, c]` for `[[a, b], [b, c]]`.
+    pub conic: [f64; 3],
+    /// Camera-space depth (z).
+    pub depth: f64,
+    /// Opacity after activation (and the antialiasing factor).
+    pub opacity: f64,
+    pub radius: f64,
+    /// RGB from the SH at this view direction (before clamping at 0).
+    pub color: [f64; 3],
+    /// Unit normal in the camera frame: the axis of the smallest scale, facing the camera.
+    pub normal: [f64; 3],
+}
+
+/// Rotation matrix (rows) of a quaternion `w x y z` (normalised here).
+pub fn rotation(q: [f32; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = q.map(|v| v as f64);
+    let n = (w * w + x * x + y * y + z * z).sqrt();
+    let (w, x, y, z) = if n > 0.0 { (w / n, x / n, y / n, z / n) } else { (1.0, 0.0, 0.0, 0.0) };
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
+/// Projects Gaussian `i`; `None` if culled or degenerate (never NaN out).
+pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Option<Projected> {
+    let m = g.means[i].map(|v| v as f64);
+    let p = cam.to_camera(m);
+    if !(p[2] > cam.near && p[2] < cam.far) || p.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let r = rotation(g.rotations[i]);
+    let s = g.log_scales[i].map(|v| (v as f64).exp());
+    if s.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    // Sigma3 = R diag(s^2) R^T
+    let mut sig3 = [[0.0; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            sig3[a][b] = (0..3).map(|k| r[a][k] * s[k] * s[k] * r[b][k]).sum();
+        }
+    }
+    let w = &cam.camera_from_world;
+    let wr: [[f64; 3]; 3] = std::array::from_fn(|a| [w[a][0], w[a][1], w[a][2]]);
+    let z = p[2];
+    let (w_px, h_px) = (cam.width as f64, cam.height as f64);
+    let tx = (p[0] / z).clamp(-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx) * z;
+    let ty = (p[1] / z).clamp(-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy) * z;
+    let j = [[cam.fx / z, 0.0, -cam.fx * tx / (z * z)], [0.0, cam.fy / z, -cam.fy * ty / (z * z)]];
+    // T = J W (2x3)
+    let t: [[f64; 3]; 2] = std::array::from_fn(|a| std::array::from_fn(|b| (0..3).map(|k| j[a][k] * wr[k][b]).sum()));
+    let mut cov = [[0.0; 2]; 2];
+    for a in 0..2 {
+        for b in 0..2 {
+            cov[a][b] = (0..3).map(|k| (0..3).map(|l| t[a][k] * sig3[k][l] * t[b][l]).sum::<f64>()).sum();
+        }
+    }
+    let det0 = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
+    cov[0][0] += EPS2D;
+    cov[1][1] += EPS2D;
+    let det = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
+    if det.is_nan() || det <= 0.0 || !det.is_finite() {
+        return None;
+    }
+    let mut opacity = sigmoid(g.opacity_logits[i]) as f64;
+    if antialiased {
+        opacity *= (det0.max(0.0) / det).sqrt();
+    }
+    if opacity.is_nan() || opacity < ALPHA_MIN {
+        return None;
+    }
+    let conic = [cov[1][1] / det, -cov[0][1] / det, cov[0][0] / det];
+    let mid = 0.5 * (cov[0][0] + cov[1][1]);
+    let lambda = mid + (mid * mid - det).max(0.0).sqrt();
+    let radius = (2.0 * (255.0 * opacity).ln() * lambda).sqrt();
+    let mean = [cam.fx * p[0] / z + cam.cx, cam.fy * p[1] / z + cam.cy];
+    // Colour from SH at the view direction (world frame, camera centre to mean).
+    let c = cam.center();
+    let d = [m[0] - c[0], m[1] - c[1], m[2] - c[2]];
+    let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
+    let b = basis(g.sh_degree, [d[0] / dn, d[1] / dn, d[2] / dn]);
+    let sh = g.sh_of(i);
+    let color: [f64; 3] =
+        std::array::from_fn(|ch| 0.5 + (0..g.coeffs()).map(|k| b[k] * sh[k * 3 + ch] as f64).sum::<f64>());
+    // Normal: the rotation axis of the smallest scale, in camera axes, facing the camera.
+    let kmin = (0..3).min_by(|a, b| s[*a].total_cmp(&s[*b])).unwrap_or(0);
+    let axis = [r[0][kmin], r[1][kmin], r[2][kmin]];
+    let mut n: [f64; 3] = std::array::from_fn(|a| (0..3).map(|k| wr[a][k] * axis[k]).sum());
+    if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0.0 {
+        n = n.map(|v| -v);
+    }
+    let ok = mean.iter().chain(&conic).chain(&color).chain(&n).all(|v| v.is_finite()) && radius.is_finite();
+    ok.then_some(Projected { index: i, mean, conic, depth: z, opacity, radius, color, normal: n })
+}

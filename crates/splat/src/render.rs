@@ -1,0 +1,198 @@
+//! Forward rendering: project (rayon), bin into 16x16 tiles, sort each tile's Gaussians by depth,
+//! composite front to back per pixel (rayon over tiles). Per Gaussian and pixel centre `q`:
+//! `alpha = min(0.99, o exp(-0.5 d^T conic d))`, `d = q - mean`; skipped if `alpha < 1/255`; the
+//! pixel stops before a Gaussian that would drop the transmittance below 1e-4. Outputs:
+//! `rgb = sum w max(c, 0) + T background`, `alpha = 1 - T`, `depth = sum w z` (expected depth),
+//! `normal = sum w n` (camera frame, or world frame on request), `features = sum w f`, with
+//! `w = alpha T` and `T` the transmittance before the Gaussian.
+
+use crate::camera::Camera;
+use crate::gaussians::Gaussians;
+use crate::project::{project, Projected, ALPHA_MIN};
+use rayon::prelude::*;
+
+pub const TILE: usize = 16;
+pub const ALPHA_MAX: f64 = 0.99;
+pub const T_MIN: f64 = 1e-4;
+
+#[derive(Clone, Debug, Default)]
+pub struct RenderOptions {
+    pub background: [f64; 3],
+    pub antialiased: bool,
+    /// Normals in the world frame instead of the camera frame.
+    pub normals_world: bool,
+}
+
+/// Rendered channels, row-major, f64 (the reference precision).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f64; 3]>,
+    pub alpha: Vec<f64>,
+    pub depth: Vec<f64>,
+    pub normal: Vec<[f64; 3]>,
+    /// `channels` values per pixel.
+    pub features: Vec<f64>,
+    pub channels: usize,
+}
+
+/// Per-Gaussian extra feature channels: `channels` values per Gaussian.
+#[derive(Clone, Debug, Default)]
+pub struct Features<'a> {
+    pub values: &'a [f32],
+    pub channels: usize,
+}
+
+/// One pixel's accumulation over depth-sorted candidates.
+#[allow(clippy::too_many_arguments)]
+fn composite(
+    q: [f64; 2],
+    order: &[usize],
+    proj: &[Projected],
+    feats: &Features,
+    opts: &RenderOptions,
+    normal_rot: &Option<[[f64; 3]; 3]>,
+    out_f: &mut [f64],
+) -> ([f64; 3], f64, f64, [f64; 3]) {
+    let (mut rgb, mut depth, mut n) = ([0.0; 3], 0.0, [0.0; 3]);
+    let mut t = 1.0;
+    for &pi in order {
+        let g = &proj[pi];
+        let (dx, dy) = (q[0] - g.mean[0], q[1] - g.mean[1]);
+        let power = -0.5 * (g.conic[0] * dx * dx + g.conic[2] * dy * dy) - g.conic[1] * dx * dy;
+        if power > 0.0 {
+            continue;
+        }
+        let alpha = (g.opacity * power.exp()).min(ALPHA_MAX);
+        if alpha < ALPHA_MIN {
+            continue;
+        }
+        let next = t * (1.0 - alpha);
+        if next < T_MIN {
+            break;
+        }
+        let w = alpha * t;
+        for (o, c) in rgb.iter_mut().zip(g.color) {
+            *o += w * c.max(0.0);
+        }
+        depth += w * g.depth;
+        let gn = match normal_rot {
+            Some(r) => std::array::from_fn(|a| (0..3).map(|k| r[k][a] * g.normal[k]).sum()),
+            None => g.normal,
+        };
+        for (o, v) in n.iter_mut().zip(gn) {
+            *o += w * v;
+        }
+        for (c, o) in out_f.iter_mut().enumerate() {
+            *o += w * feats.values[g.index * feats.channels + c] as f64;
+        }
+        t = next;
+    }
+    for (o, b) in rgb.iter_mut().zip(opts.background) {
+        *o += t * b;
+    }
+    (rgb, 1.0 - t, depth, n)
+}
+
+fn blank(cam: &Camera, channels: usize) -> Image {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    Image {
+        width: w,
+        height: h,
+        rgb: vec![[0.0; 3]; w * h],
+        alpha: vec![0.0; w * h],
+        depth: vec![0.0; w * h],
+        normal: vec![[0.0; 3]; w * h],
+        features: vec![0.0; w * h * channels],
+        channels,
+    }
+}
+
+fn rotation_of(cam: &Camera, opts: &RenderOptions) -> Option<[[f64; 3]; 3]> {
+    opts.normals_world.then(|| std::array::from_fn(|a| std::array::from_fn(|b| cam.camera_from_world[a][b])))
+}
+
+/// Projects every Gaussian (culled ones are dropped).
+pub fn project_all(g: &Gaussians, cam: &Camera, antialiased: bool) -> Vec<Projected> {
+    (0..g.len()).into_par_iter().filter_map(|i| project(g, i, cam, antialiased)).collect()
+}
+
+/// The tiled renderer.
+pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
+    let proj = project_all(g, cam, opts.antialiased);
+    let mut img = blank(cam, feats.channels);
+    let (w, h) = (img.width, img.height);
+    let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    let mut tiles: Vec<Vec<usize>> = vec![Vec::new(); tx * ty];
+    for (pi, p) in proj.iter().enumerate() {
+        let x0 = ((p.mean[0] - p.radius) / TILE as f64).floor().max(0.0);
+        let x1 = ((p.mean[0] + p.radius) / TILE as f64).floor().min(tx as f64 - 1.0);
+        let y0 = ((p.mean[1] - p.radius) / TILE as f64).floor().max(0.0);
+        let y1 = ((p.mean[1] + p.radius) / TILE as f64).floor().min(ty as f64 - 1.0);
+        if x1 < x0 || y1 < y0 {
+            continue;
+        }
+        for yy in y0 as usize..=y1 as usize {
+            for xx in x0 as usize..=x1 as usize {
+                tiles[yy * tx + xx].push(pi);
+            }
+        }
+    }
+    let key = |a: &usize| (proj[*a].depth, proj[*a].index);
+    tiles.par_iter_mut().for_each(|t| t.sort_by(|a, b| key(a).partial_cmp(&key(b)).expect("finite depths")));
+    let nrot = rotation_of(cam, opts);
+    /// (pixel index, rgb, alpha, depth, normal, features)
+    type Pixel = (usize, [f64; 3], f64, f64, [f64; 3], Vec<f64>);
+    let done: Vec<(usize, Vec<Pixel>)> = tiles
+        .par_iter()
+        .enumerate()
+        .map(|(ti, order)| {
+            let (bx, by) = ((ti % tx) * TILE, (ti / tx) * TILE);
+            let mut px = Vec::with_capacity(TILE * TILE);
+            for y in by..(by + TILE).min(h) {
+                for x in bx..(bx + TILE).min(w) {
+                    let mut f = vec![0.0; feats.channels];
+                    let (c, a, d, n) =
+                        composite([x as f64 + 0.5, y as f64 + 0.5], order, &proj, feats, opts, &nrot, &mut f);
+                    px.push((y * w + x, c, a, d, n, f));
+                }
+            }
+            (ti, px)
+        })
+        .collect();
+    for (_, px) in done {
+        for (i, c, a, d, n, f) in px {
+            img.rgb[i] = c;
+            img.alpha[i] = a;
+            img.depth[i] = d;
+            img.normal[i] = n;
+            img.features[i * feats.channels..(i + 1) * feats.channels].copy_from_slice(&f);
+        }
+    }
+    img
+}
+
+/// The reference: every pixel walks every Gaussian in global depth order (no tiles).
+pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
+    let proj = project_all(g, cam, opts.antialiased);
+    let mut order: Vec<usize> = (0..proj.len()).collect();
+    order.sort_by(|a, b| {
+        (proj[*a].depth, proj[*a].index).partial_cmp(&(proj[*b].depth, proj[*b].index)).expect("finite depths")
+    });
+    let mut img = blank(cam, feats.channels);
+    let nrot = rotation_of(cam, opts);
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let i = y * img.width + x;
+            let mut f = vec![0.0; feats.channels];
+            let (c, a, d, n) = composite([x as f64 + 0.5, y as f64 + 0.5], &order, &proj, feats, opts, &nrot, &mut f);
+            img.rgb[i] = c;
+            img.alpha[i] = a;
+            img.depth[i] = d;
+            img.normal[i] = n;
+            img.features[i * feats.channels..(i + 1) * feats.channels].copy_from_slice(&f);
+        }
+    }
+    img
+}
