@@ -1,20 +1,22 @@
 //! The Gaussian model as a structure of arrays: means, log-scales, unit rotations (w x y z),
-//! opacity logits and spherical-harmonic colour coefficients up to degree 3. Activations:
+//! opacity logits and spherical-harmonic colour coefficients up to degree 3, in f64 (this is the
+//! reference implementation: finite-difference checks need f64 parameters; PLY files are f32).
+//! Activations:
 //! scale = exp(log_scale), opacity = sigmoid(logit), rotation = q / |q|.
 
 use crate::sh::sh_coeffs;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Gaussians {
-    pub means: Vec<[f32; 3]>,
-    pub log_scales: Vec<[f32; 3]>,
+    pub means: Vec<[f64; 3]>,
+    pub log_scales: Vec<[f64; 3]>,
     /// Quaternions (w, x, y, z); normalised on use.
-    pub rotations: Vec<[f32; 4]>,
-    pub opacity_logits: Vec<f32>,
+    pub rotations: Vec<[f64; 4]>,
+    pub opacity_logits: Vec<f64>,
     /// Spherical-harmonic degree (0..=3).
     pub sh_degree: usize,
     /// `len() * sh_coeffs(sh_degree) * 3` values: per Gaussian, per coefficient, r g b.
-    pub sh: Vec<f32>,
+    pub sh: Vec<f64>,
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -39,7 +41,7 @@ impl Gaussians {
     }
 
     /// The `3 * coeffs()` colour coefficients of Gaussian `i`.
-    pub fn sh_of(&self, i: usize) -> &[f32] {
+    pub fn sh_of(&self, i: usize) -> &[f64] {
         let k = self.coeffs() * 3;
         &self.sh[i * k..(i + 1) * k]
     }
@@ -64,6 +66,6 @@ impl Gaussians {
     }
 }
 
-pub fn sigmoid(x: f32) -> f32 {
+pub fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }

@@ -84,7 +84,7 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
         sh: Vec::with_capacity(verts.len() * k * 3),
     };
     for (index, v) in verts.iter().enumerate() {
-        let get = |name: &str| -> Result<f32, PlyError> {
+        let get = |name: &str| -> Result<f64, PlyError> {
             let bad = |message: &str| PlyError::Vertex {
                 file: file.clone(),
                 index,
@@ -92,8 +92,8 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
                 message: message.into(),
             };
             let x = match v.get(name) {
-                Some(Property::Float(x)) => *x,
-                Some(Property::Double(x)) => *x as f32,
+                Some(Property::Float(x)) => *x as f64,
+                Some(Property::Double(x)) => *x,
                 Some(_) => return Err(bad("expected a float")),
                 None => return Err(bad("missing")),
             };
@@ -132,7 +132,7 @@ pub fn write_ply(path: &Path, g: &Gaussians) -> Result<(), PlyError> {
     let mut verts = Vec::with_capacity(g.len());
     for i in 0..g.len() {
         let sh = g.sh_of(i);
-        let mut values: Vec<f32> = Vec::with_capacity(names.len());
+        let mut values: Vec<f64> = Vec::with_capacity(names.len());
         values.extend(g.means[i]);
         values.extend([0.0; 3]);
         values.extend(&sh[..3]);
@@ -144,7 +144,7 @@ pub fn write_ply(path: &Path, g: &Gaussians) -> Result<(), PlyError> {
         values.extend(g.rotations[i]);
         let mut e = DefaultElement::new();
         for (n, v) in names.iter().zip(values) {
-            e.insert(n.clone(), Property::Float(v));
+            e.insert(n.clone(), Property::Float(v as f32));
         }
         verts.push(e);
     }

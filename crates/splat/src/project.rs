@@ -37,8 +37,8 @@ pub struct Projected {
 }
 
 /// Rotation matrix (rows) of a quaternion `w x y z` (normalised here).
-pub fn rotation(q: [f32; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = q.map(|v| v as f64);
+pub fn rotation(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = q;
     let n = (w * w + x * x + y * y + z * z).sqrt();
     let (w, x, y, z) = if n > 0.0 { (w / n, x / n, y / n, z / n) } else { (1.0, 0.0, 0.0, 0.0) };
     [
@@ -50,13 +50,13 @@ pub fn rotation(q: [f32; 4]) -> [[f64; 3]; 3] {
 
 /// Projects Gaussian `i`; `None` if culled or degenerate (never NaN out).
 pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Option<Projected> {
-    let m = g.means[i].map(|v| v as f64);
+    let m = g.means[i];
     let p = cam.to_camera(m);
     if !(p[2] > cam.near && p[2] < cam.far) || p.iter().any(|v| !v.is_finite()) {
         return None;
     }
     let r = rotation(g.rotations[i]);
-    let s = g.log_scales[i].map(|v| (v as f64).exp());
+    let s = g.log_scales[i].map(f64::exp);
     if s.iter().any(|v| !v.is_finite()) {
         return None;
     }
@@ -89,7 +89,7 @@ pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Opti
     if det.is_nan() || det <= 0.0 || !det.is_finite() {
         return None;
     }
-    let mut opacity = sigmoid(g.opacity_logits[i]) as f64;
+    let mut opacity = sigmoid(g.opacity_logits[i]);
     if antialiased {
         opacity *= (det0.max(0.0) / det).sqrt();
     }
@@ -107,8 +107,7 @@ pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Opti
     let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
     let b = basis(g.sh_degree, [d[0] / dn, d[1] / dn, d[2] / dn]);
     let sh = g.sh_of(i);
-    let color: [f64; 3] =
-        std::array::from_fn(|ch| 0.5 + (0..g.coeffs()).map(|k| b[k] * sh[k * 3 + ch] as f64).sum::<f64>());
+    let color: [f64; 3] = std::array::from_fn(|ch| 0.5 + (0..g.coeffs()).map(|k| b[k] * sh[k * 3 + ch]).sum::<f64>());
     // Normal: the rotation axis of the smallest scale, in camera axes, facing the camera.
     let kmin = (0..3).min_by(|a, b| s[*a].total_cmp(&s[*b])).unwrap_or(0);
     let axis = [r[0][kmin], r[1][kmin], r[2][kmin]];

@@ -40,7 +40,7 @@ pub struct Image {
 /// Per-Gaussian extra feature channels: `channels` values per Gaussian.
 #[derive(Clone, Debug, Default)]
 pub struct Features<'a> {
-    pub values: &'a [f32],
+    pub values: &'a [f64],
     pub channels: usize,
 }
 
@@ -85,7 +85,7 @@ fn composite(
             *o += w * v;
         }
         for (c, o) in out_f.iter_mut().enumerate() {
-            *o += w * feats.values[g.index * feats.channels + c] as f64;
+            *o += w * feats.values[g.index * feats.channels + c];
         }
         t = next;
     }

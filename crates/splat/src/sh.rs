@@ -55,9 +55,57 @@ pub fn basis(degree: usize, d: [f64; 3]) -> [f64; 16] {
     b
 }
 
+/// The basis values and their gradients with respect to the (unnormalised) direction
+/// components, `grad[k] = dY_k / d(x, y, z)`, treating `d` as given (callers chain through the
+/// normalisation).
+pub fn basis_grad(degree: usize, d: [f64; 3]) -> [[f64; 3]; 16] {
+    let [x, y, z] = d;
+    let mut g = [[0.0; 3]; 16];
+    if degree >= 1 {
+        g[1] = [0.0, -C1, 0.0];
+        g[2] = [0.0, 0.0, C1];
+        g[3] = [-C1, 0.0, 0.0];
+    }
+    if degree >= 2 {
+        g[4] = [C2[0] * y, C2[0] * x, 0.0];
+        g[5] = [0.0, C2[1] * z, C2[1] * y];
+        g[6] = [C2[2] * -2.0 * x, C2[2] * -2.0 * y, C2[2] * 4.0 * z];
+        g[7] = [C2[3] * z, 0.0, C2[3] * x];
+        g[8] = [C2[4] * 2.0 * x, C2[4] * -2.0 * y, 0.0];
+        if degree >= 3 {
+            let (xx, yy, zz) = (x * x, y * y, z * z);
+            g[9] = [C3[0] * 6.0 * x * y, C3[0] * (3.0 * xx - 3.0 * yy), 0.0];
+            g[10] = [C3[1] * y * z, C3[1] * x * z, C3[1] * x * y];
+            g[11] = [C3[2] * -2.0 * x * y, C3[2] * (4.0 * zz - xx - 3.0 * yy), C3[2] * 8.0 * y * z];
+            g[12] = [C3[3] * -6.0 * x * z, C3[3] * -6.0 * y * z, C3[3] * (6.0 * zz - 3.0 * xx - 3.0 * yy)];
+            g[13] = [C3[4] * (4.0 * zz - 3.0 * xx - yy), C3[4] * -2.0 * x * y, C3[4] * 8.0 * x * z];
+            g[14] = [C3[5] * 2.0 * x * z, C3[5] * -2.0 * y * z, C3[5] * (xx - yy)];
+            g[15] = [C3[6] * (3.0 * xx - 3.0 * yy), C3[6] * -6.0 * x * y, 0.0];
+        }
+    }
+    g
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn basis_gradient_by_finite_differences() {
+        let d = [0.3, -0.5, 0.8];
+        let g = basis_grad(3, d);
+        for a in 0..3 {
+            let h = 1e-6;
+            let (mut p, mut m) = (d, d);
+            p[a] += h;
+            m[a] -= h;
+            let (bp, bm) = (basis(3, p), basis(3, m));
+            for (k, gk) in g.iter().enumerate() {
+                let fd = (bp[k] - bm[k]) / (2.0 * h);
+                assert!((fd - gk[a]).abs() < 1e-8, "Y{k} d/d{a}: {fd} vs {}", gk[a]);
+            }
+        }
+    }
 
     #[test]
     fn orthonormal_on_the_sphere() {

@@ -13,8 +13,8 @@ impl Rng {
         self.0 ^= self.0 << 17;
         (self.0 >> 40) as f32 / (1u64 << 24) as f32
     }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next() as f64
     }
 }
 
@@ -68,7 +68,7 @@ fn tiled_equals_brute_force() {
     {
         let g = scene(300, degree, seed);
         let cam = camera(80, 56);
-        let feats: Vec<f32> = (0..g.len() * 2).map(|i| (i % 7) as f32 / 7.0).collect();
+        let feats: Vec<f64> = (0..g.len() * 2).map(|i| (i % 7) as f64 / 7.0).collect();
         let f = Features { values: &feats, channels: 2 };
         let opts = RenderOptions { background: [0.2, 0.3, 0.4], antialiased: aa, normals_world: world };
         let a = render(&g, &cam, &f, &opts);
@@ -86,9 +86,9 @@ fn one_gaussian_by_hand() {
     // opacity 0.8, grey (SH dc 0 -> 0.5). Its thin axis (z) projects to nothing at the centre.
     let g = Gaussians {
         means: vec![[0.0, 0.0, 4.0]],
-        log_scales: vec![[0.1f32.ln(), 0.1f32.ln(), 0.01f32.ln()]],
+        log_scales: vec![[0.1f64.ln(), 0.1f64.ln(), 0.01f64.ln()]],
         rotations: vec![[1.0, 0.0, 0.0, 0.0]],
-        opacity_logits: vec![(0.8f32 / 0.2).ln()],
+        opacity_logits: vec![(0.8f64 / 0.2).ln()],
         sh_degree: 0,
         sh: vec![0.0; 3],
     };
@@ -99,12 +99,11 @@ fn one_gaussian_by_hand() {
     let var = sigma_px * sigma_px + 0.3;
     let expect = 0.8 * (-0.5 * (0.25 + 0.25) / var).exp();
     let i = 32 * 64 + 32;
-    // Parameters are stored in f32 (ln 0.1, the logit): agreement to about 1e-8.
-    assert!((img.alpha[i] - expect).abs() < 1e-6, "{} vs {expect}", img.alpha[i]);
-    assert!((img.rgb[i][0] - 0.5 * expect).abs() < 1e-6);
-    assert!((img.depth[i] - 4.0 * expect).abs() < 1e-5);
+    assert!((img.alpha[i] - expect).abs() < 1e-12, "{} vs {expect}", img.alpha[i]);
+    assert!((img.rgb[i][0] - 0.5 * expect).abs() < 1e-12);
+    assert!((img.depth[i] - 4.0 * expect).abs() < 1e-11);
     // The disk's normal (its thin axis) faces the camera: -z, weighted by the alpha.
-    assert!((img.normal[i][2] + expect).abs() < 1e-6 && img.normal[i][0].abs() < 1e-9);
+    assert!((img.normal[i][2] + expect).abs() < 1e-12 && img.normal[i][0].abs() < 1e-12);
     assert_eq!(img.alpha[0], 0.0);
 }
 
@@ -113,11 +112,11 @@ fn degenerate_inputs_never_panic_or_write_nan() {
     let mut g = scene(40, 1, 9);
     g.log_scales[0] = [-80.0; 3]; // zero size
     g.means[1] = [0.0, 0.0, -3.0]; // behind the camera
-    g.means[2] = [f32::NAN, 0.0, 3.0];
-    g.log_scales[3] = [f32::NAN, 0.0, 0.0];
+    g.means[2] = [f64::NAN, 0.0, 3.0];
+    g.log_scales[3] = [f64::NAN, 0.0, 0.0];
     g.rotations[4] = [0.0; 4]; // not a rotation
-    g.opacity_logits[5] = f32::NAN;
-    g.sh[6 * 12] = f32::INFINITY;
+    g.opacity_logits[5] = f64::NAN;
+    g.sh[6 * 12] = f64::INFINITY;
     g.log_scales[7] = [60.0; 3]; // enormous
     g.means[8] = [0.0, 0.0, 0.010001]; // at the near plane
     let cam = camera(48, 32);

@@ -6,14 +6,15 @@ use splat::Gaussians;
 
 fn model(n: usize, degree: usize) -> Gaussians {
     let k = (degree + 1) * (degree + 1);
-    let f = |i: usize, j: usize| ((i * 31 + j * 7) % 97) as f32 / 13.0 - 3.0;
+    // Values a PLY file (f32) holds exactly.
+    let f = |i: usize, j: usize, d: f32| ((((i * 31 + j * 7) % 97) as f32 / 13.0 - 3.0) / d) as f64;
     Gaussians {
-        means: (0..n).map(|i| [f(i, 0), f(i, 1), f(i, 2)]).collect(),
-        log_scales: (0..n).map(|i| [f(i, 3) / 3.0, f(i, 4) / 3.0, f(i, 5) / 3.0]).collect(),
-        rotations: (0..n).map(|i| [1.0, f(i, 6) / 10.0, f(i, 7) / 10.0, f(i, 8) / 10.0]).collect(),
-        opacity_logits: (0..n).map(|i| f(i, 9)).collect(),
+        means: (0..n).map(|i| [f(i, 0, 1.0), f(i, 1, 1.0), f(i, 2, 1.0)]).collect(),
+        log_scales: (0..n).map(|i| [f(i, 3, 3.0), f(i, 4, 3.0), f(i, 5, 3.0)]).collect(),
+        rotations: (0..n).map(|i| [1.0, f(i, 6, 10.0), f(i, 7, 10.0), f(i, 8, 10.0)]).collect(),
+        opacity_logits: (0..n).map(|i| f(i, 9, 1.0)).collect(),
         sh_degree: degree,
-        sh: (0..n * k * 3).map(|j| f(j, 10) / 5.0).collect(),
+        sh: (0..n * k * 3).map(|j| f(j, 10, 5.0)).collect(),
     }
 }
 
@@ -49,9 +50,10 @@ property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float
     assert_eq!(g.sh_degree, 0);
     assert_eq!(g.len(), 2);
     assert_eq!(g.means[0], [1.0, 2.0, 3.0]);
-    assert_eq!(g.sh_of(0), &[0.1, 0.2, 0.3]);
+    let f32s = |v: [f32; 3]| v.map(|x| x as f64);
+    assert_eq!(g.sh_of(0), &f32s([0.1, 0.2, 0.3]));
     assert_eq!(g.log_scales[0], [-1.0, -2.0, -3.0]);
-    assert_eq!(g.rotations[1], [0.7, 0.7, 0.0, 0.0]);
+    assert_eq!(g.rotations[1], [0.7f32 as f64, 0.7f32 as f64, 0.0, 0.0]);
     assert_eq!(g.opacity_logits[1], -0.5);
 }
 
