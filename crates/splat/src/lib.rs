@@ -3,6 +3,7 @@
 //! in the standard 3DGS layout (`ply`), EWA projection (`project`) and the tiled forward renderer
 //! with its brute-force reference (`render`). Imports nothing of ours.
 
+pub mod backward;
 pub mod camera;
 pub mod gaussians;
 pub mod ply;

@@ -48,8 +48,46 @@ pub fn rotation(q: [f64; 4]) -> [[f64; 3]; 3] {
     ]
 }
 
+/// What the backward pass needs from the forward projection of one Gaussian.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// Camera-space point.
+    pub p: [f64; 3],
+    /// Gaussian rotation (rows) and scales.
+    pub r: [[f64; 3]; 3],
+    pub s: [f64; 3],
+    pub sig3: [[f64; 3]; 3],
+    /// `T = J W` (2x3) and the Jacobian's clamped flags (x, y).
+    pub t: [[f64; 3]; 2],
+    pub clamped: [bool; 2],
+    /// 2D covariance before and after the low-pass.
+    pub cov0: [[f64; 2]; 2],
+    pub cov: [[f64; 2]; 2],
+    /// Sigmoid of the opacity logit, and the antialiasing factor (1 when off).
+    pub sigmoid: f64,
+    pub aa: f64,
+    /// Unit view direction (world), its length, and the SH basis there.
+    pub dir: [f64; 3],
+    pub dist: f64,
+    pub basis: [f64; 16],
+    /// Axis of the smallest scale and whether the normal was flipped to face the camera.
+    pub kmin: usize,
+    pub flipped: bool,
+}
+
 /// Projects Gaussian `i`; `None` if culled or degenerate (never NaN out).
 pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Option<Projected> {
+    project_full(g, i, cam, antialiased, false).map(|(p, _)| p)
+}
+
+/// [`project`] with the intermediates; `smooth` keeps faint Gaussians (for gradient checks).
+pub fn project_full(
+    g: &Gaussians,
+    i: usize,
+    cam: &Camera,
+    antialiased: bool,
+    smooth: bool,
+) -> Option<(Projected, Frame)> {
     let m = g.means[i];
     let p = cam.to_camera(m);
     if !(p[2] > cam.near && p[2] < cam.far) || p.iter().any(|v| !v.is_finite()) {
@@ -71,8 +109,11 @@ pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Opti
     let wr: [[f64; 3]; 3] = std::array::from_fn(|a| [w[a][0], w[a][1], w[a][2]]);
     let z = p[2];
     let (w_px, h_px) = (cam.width as f64, cam.height as f64);
-    let tx = (p[0] / z).clamp(-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx) * z;
-    let ty = (p[1] / z).clamp(-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy) * z;
+    let (ux, uy) = (p[0] / z, p[1] / z);
+    let cx_ = ux.clamp(-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx);
+    let cy_ = uy.clamp(-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy);
+    let clamped = [cx_ != ux, cy_ != uy];
+    let (tx, ty) = (cx_ * z, cy_ * z);
     let j = [[cam.fx / z, 0.0, -cam.fx * tx / (z * z)], [0.0, cam.fy / z, -cam.fy * ty / (z * z)]];
     // T = J W (2x3)
     let t: [[f64; 3]; 2] = std::array::from_fn(|a| std::array::from_fn(|b| (0..3).map(|k| j[a][k] * wr[k][b]).sum()));
@@ -83,23 +124,23 @@ pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Opti
         }
     }
     let det0 = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
+    let cov0 = cov;
     cov[0][0] += EPS2D;
     cov[1][1] += EPS2D;
     let det = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
     if det.is_nan() || det <= 0.0 || !det.is_finite() {
         return None;
     }
-    let mut opacity = sigmoid(g.opacity_logits[i]);
-    if antialiased {
-        opacity *= (det0.max(0.0) / det).sqrt();
-    }
-    if opacity.is_nan() || opacity < ALPHA_MIN {
+    let sig = sigmoid(g.opacity_logits[i]);
+    let aa = if antialiased { (det0.max(0.0) / det).sqrt() } else { 1.0 };
+    let opacity = sig * aa;
+    if opacity.is_nan() || (!smooth && opacity < ALPHA_MIN) || opacity <= 0.0 {
         return None;
     }
     let conic = [cov[1][1] / det, -cov[0][1] / det, cov[0][0] / det];
     let mid = 0.5 * (cov[0][0] + cov[1][1]);
     let lambda = mid + (mid * mid - det).max(0.0).sqrt();
-    let radius = (2.0 * (255.0 * opacity).ln() * lambda).sqrt();
+    let radius = (2.0 * (255.0 * opacity).ln().max(0.0) * lambda).sqrt();
     let mean = [cam.fx * p[0] / z + cam.cx, cam.fy * p[1] / z + cam.cy];
     // Colour from SH at the view direction (world frame, camera centre to mean).
     let c = cam.center();
@@ -112,9 +153,27 @@ pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Opti
     let kmin = (0..3).min_by(|a, b| s[*a].total_cmp(&s[*b])).unwrap_or(0);
     let axis = [r[0][kmin], r[1][kmin], r[2][kmin]];
     let mut n: [f64; 3] = std::array::from_fn(|a| (0..3).map(|k| wr[a][k] * axis[k]).sum());
-    if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0.0 {
+    let flipped = n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0.0;
+    if flipped {
         n = n.map(|v| -v);
     }
     let ok = mean.iter().chain(&conic).chain(&color).chain(&n).all(|v| v.is_finite()) && radius.is_finite();
-    ok.then_some(Projected { index: i, mean, conic, depth: z, opacity, radius, color, normal: n })
+    let frame = Frame {
+        p,
+        r,
+        s,
+        sig3,
+        t,
+        clamped,
+        cov0,
+        cov,
+        sigmoid: sig,
+        aa,
+        dir: [d[0] / dn, d[1] / dn, d[2] / dn],
+        dist: dn,
+        basis: b,
+        kmin,
+        flipped,
+    };
+    ok.then_some((Projected { index: i, mean, conic, depth: z, opacity, radius, color, normal: n }, frame))
 }

@@ -8,7 +8,7 @@
 
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
-use crate::project::{project, Projected, ALPHA_MIN};
+use crate::project::{project_full, Frame, Projected, ALPHA_MIN};
 use rayon::prelude::*;
 
 pub const TILE: usize = 16;
@@ -21,6 +21,10 @@ pub struct RenderOptions {
     pub antialiased: bool,
     /// Normals in the world frame instead of the camera frame.
     pub normals_world: bool,
+    /// Test mode for finite-difference checks: no alpha cut-off (1/255), no 0.99 clamp, no early
+    /// stop, no culling of faint Gaussians and no tile culling, so outputs are smooth functions
+    /// of the parameters.
+    pub smooth: bool,
 }
 
 /// Rendered channels, row-major, f64 (the reference precision).
@@ -64,12 +68,13 @@ fn composite(
         if power > 0.0 {
             continue;
         }
-        let alpha = (g.opacity * power.exp()).min(ALPHA_MAX);
-        if alpha < ALPHA_MIN {
+        let raw = g.opacity * power.exp();
+        let alpha = if opts.smooth { raw } else { raw.min(ALPHA_MAX) };
+        if !opts.smooth && alpha < ALPHA_MIN {
             continue;
         }
         let next = t * (1.0 - alpha);
-        if next < T_MIN {
+        if !opts.smooth && next < T_MIN {
             break;
         }
         let w = alpha * t;
@@ -113,23 +118,32 @@ fn rotation_of(cam: &Camera, opts: &RenderOptions) -> Option<[[f64; 3]; 3]> {
     opts.normals_world.then(|| std::array::from_fn(|a| std::array::from_fn(|b| cam.camera_from_world[a][b])))
 }
 
-/// Projects every Gaussian (culled ones are dropped).
-pub fn project_all(g: &Gaussians, cam: &Camera, antialiased: bool) -> Vec<Projected> {
-    (0..g.len()).into_par_iter().filter_map(|i| project(g, i, cam, antialiased)).collect()
+/// Projects every Gaussian (culled ones are dropped), with the backward pass's intermediates.
+pub fn project_all_full(g: &Gaussians, cam: &Camera, opts: &RenderOptions) -> Vec<(Projected, Frame)> {
+    (0..g.len()).into_par_iter().filter_map(|i| project_full(g, i, cam, opts.antialiased, opts.smooth)).collect()
 }
 
-/// The tiled renderer.
-pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
-    let proj = project_all(g, cam, opts.antialiased);
-    let mut img = blank(cam, feats.channels);
-    let (w, h) = (img.width, img.height);
+/// Projects every Gaussian (culled ones are dropped).
+pub fn project_all(g: &Gaussians, cam: &Camera, opts: &RenderOptions) -> Vec<Projected> {
+    project_all_full(g, cam, opts).into_iter().map(|(p, _)| p).collect()
+}
+
+/// Per tile (row-major, `TILE` pixels square) the indices into `proj` of the Gaussians that can
+/// touch it, sorted by (depth, index). In smooth mode every tile gets every Gaussian.
+pub fn bin(proj: &[Projected], w: usize, h: usize, smooth: bool) -> (usize, Vec<Vec<usize>>) {
     let (tx, ty) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let mut tiles: Vec<Vec<usize>> = vec![Vec::new(); tx * ty];
     for (pi, p) in proj.iter().enumerate() {
-        let x0 = ((p.mean[0] - p.radius) / TILE as f64).floor().max(0.0);
-        let x1 = ((p.mean[0] + p.radius) / TILE as f64).floor().min(tx as f64 - 1.0);
-        let y0 = ((p.mean[1] - p.radius) / TILE as f64).floor().max(0.0);
-        let y1 = ((p.mean[1] + p.radius) / TILE as f64).floor().min(ty as f64 - 1.0);
+        let (x0, x1, y0, y1) = if smooth {
+            (0.0, tx as f64 - 1.0, 0.0, ty as f64 - 1.0)
+        } else {
+            (
+                ((p.mean[0] - p.radius) / TILE as f64).floor().max(0.0),
+                ((p.mean[0] + p.radius) / TILE as f64).floor().min(tx as f64 - 1.0),
+                ((p.mean[1] - p.radius) / TILE as f64).floor().max(0.0),
+                ((p.mean[1] + p.radius) / TILE as f64).floor().min(ty as f64 - 1.0),
+            )
+        };
         if x1 < x0 || y1 < y0 {
             continue;
         }
@@ -141,6 +155,15 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
     }
     let key = |a: &usize| (proj[*a].depth, proj[*a].index);
     tiles.par_iter_mut().for_each(|t| t.sort_by(|a, b| key(a).partial_cmp(&key(b)).expect("finite depths")));
+    (tx, tiles)
+}
+
+/// The tiled renderer.
+pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
+    let proj = project_all(g, cam, opts);
+    let mut img = blank(cam, feats.channels);
+    let (w, h) = (img.width, img.height);
+    let (tx, tiles) = bin(&proj, w, h, opts.smooth);
     let nrot = rotation_of(cam, opts);
     /// (pixel index, rgb, alpha, depth, normal, features)
     type Pixel = (usize, [f64; 3], f64, f64, [f64; 3], Vec<f64>);
@@ -175,7 +198,7 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
 
 /// The reference: every pixel walks every Gaussian in global depth order (no tiles).
 pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
-    let proj = project_all(g, cam, opts.antialiased);
+    let proj = project_all(g, cam, opts);
     let mut order: Vec<usize> = (0..proj.len()).collect();
     order.sort_by(|a, b| {
         (proj[*a].depth, proj[*a].index).partial_cmp(&(proj[*b].depth, proj[*b].index)).expect("finite depths")

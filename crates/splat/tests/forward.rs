@@ -70,7 +70,7 @@ fn tiled_equals_brute_force() {
         let cam = camera(80, 56);
         let feats: Vec<f64> = (0..g.len() * 2).map(|i| (i % 7) as f64 / 7.0).collect();
         let f = Features { values: &feats, channels: 2 };
-        let opts = RenderOptions { background: [0.2, 0.3, 0.4], antialiased: aa, normals_world: world };
+        let opts = RenderOptions { background: [0.2, 0.3, 0.4], antialiased: aa, normals_world: world, smooth: false };
         let a = render(&g, &cam, &f, &opts);
         let b = render_brute_force(&g, &cam, &f, &opts);
         let d = max_diff(&a, &b);
