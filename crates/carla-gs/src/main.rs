@@ -28,6 +28,10 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Reason -> simulate -> measure over scenes x behaviours x t0 x agents; Tables I and II, plots.
     EvalCases(cmd::eval_cases::Args),
+    /// Render a 3DGS PLY from a camera (JSON) to a PNG.
+    RenderPly(cmd::splat::RenderArgs),
+    /// Time the CPU rasterizer's forward and forward+backward passes; writes JSON.
+    BenchSplat(cmd::splat::BenchArgs),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
     Metrics(cmd::metrics::Args),
 }
@@ -51,6 +55,8 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Metrics(a) => cmd::metrics::run(a),
         Command::EvalCases(a) => cmd::eval_cases::run(a),
+        Command::RenderPly(a) => cmd::splat::render(a),
+        Command::BenchSplat(a) => cmd::splat::bench(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -70,9 +70,10 @@ fn pixel_backward(
 ) {
     let k = feats.channels;
     // Forward again: the contributing Gaussians with alpha, T before, power, clamp.
-    let mut hits: Vec<(usize, f64, f64, f64, bool)> = Vec::new();
+    // (tile-local slot, projected index, alpha, T before, power, clamped)
+    let mut hits: Vec<(usize, usize, f64, f64, f64, bool)> = Vec::new();
     let mut t = 1.0;
-    for &pi in order {
+    for (slot, &pi) in order.iter().enumerate() {
         let g = &proj[pi].0;
         let (dx, dy) = (q[0] - g.mean[0], q[1] - g.mean[1]);
         let power = -0.5 * (g.conic[0] * dx * dx + g.conic[2] * dy * dy) - g.conic[1] * dx * dy;
@@ -89,7 +90,7 @@ fn pixel_backward(
         if !opts.smooth && next < T_MIN {
             break;
         }
-        hits.push((pi, alpha, t, power, clamped));
+        hits.push((slot, pi, alpha, t, power, clamped));
         t = next;
     }
     let t_n = t;
@@ -104,11 +105,11 @@ fn pixel_backward(
     let mut s_c = opts.background.map(|b| t_n * b);
     let (mut s_d, mut s_n) = (0.0, [0.0; 3]);
     let mut s_f = vec![0.0; k];
-    for &(pi, alpha, ti, power, clamped) in hits.iter().rev() {
+    for &(slot, pi, alpha, ti, power, clamped) in hits.iter().rev() {
         let (g, _) = &proj[pi];
         let w = alpha * ti;
         let vc = g.color.map(|c| c.max(0.0));
-        let a = &mut acc[pi];
+        let a = &mut acc[slot];
         for ch in 0..3 {
             if g.color[ch] > 0.0 {
                 a.color[ch] += gc[ch] * w;
@@ -118,7 +119,7 @@ fn pixel_backward(
         a.depth += gd * w;
         let fi = &feats.values[g.index * k..(g.index + 1) * k];
         for c in 0..k {
-            facc[pi * k + c] += gf[c] * w;
+            facc[slot * k + c] += gf[c] * w;
         }
         let inv = 1.0 / (1.0 - alpha);
         let mut d_alpha = ga * t_n * inv + gd * (ti * g.depth - s_d * inv);
@@ -333,53 +334,53 @@ pub fn render_backward(
         opts.normals_world.then(|| std::array::from_fn(|a| std::array::from_fn(|b| cam.camera_from_world[a][b])));
     let k = feats.channels;
     let n = proj.len();
-    let (acc, facc) = tiles
+    // Each tile accumulates into its own small table (the Gaussians it touches), merged once.
+    let per_tile: Vec<(Vec<usize>, Vec<G2>, Vec<f64>)> = tiles
         .par_iter()
         .enumerate()
-        .fold(
-            || (vec![G2::default(); n], vec![0.0; n * k]),
-            |(mut acc, mut facc), (ti, order)| {
-                let (bx, by) = ((ti % tx) * TILE, (ti / tx) * TILE);
-                for y in by..(by + TILE).min(h) {
-                    for x in bx..(bx + TILE).min(w) {
-                        pixel_backward(
-                            [x as f64 + 0.5, y as f64 + 0.5],
-                            y * w + x,
-                            order,
-                            &proj,
-                            feats,
-                            opts,
-                            up,
-                            &nrot,
-                            &mut acc,
-                            &mut facc,
-                        );
-                    }
+        .map(|(ti, order)| {
+            let (bx, by) = ((ti % tx) * TILE, (ti / tx) * TILE);
+            let mut acc = vec![G2::default(); order.len()];
+            let mut facc = vec![0.0; order.len() * k];
+            for y in by..(by + TILE).min(h) {
+                for x in bx..(bx + TILE).min(w) {
+                    pixel_backward(
+                        [x as f64 + 0.5, y as f64 + 0.5],
+                        y * w + x,
+                        order,
+                        &proj,
+                        feats,
+                        opts,
+                        up,
+                        &nrot,
+                        &mut acc,
+                        &mut facc,
+                    );
                 }
-                (acc, facc)
-            },
-        )
-        .reduce(
-            || (vec![G2::default(); n], vec![0.0; n * k]),
-            |(mut a, mut fa), (b, fb)| {
-                for (x, y) in a.iter_mut().zip(&b) {
-                    for c in 0..2 {
-                        x.mean[c] += y.mean[c];
-                    }
-                    for c in 0..3 {
-                        x.conic[c] += y.conic[c];
-                        x.color[c] += y.color[c];
-                        x.normal[c] += y.normal[c];
-                    }
-                    x.opacity += y.opacity;
-                    x.depth += y.depth;
-                }
-                for (x, y) in fa.iter_mut().zip(&fb) {
-                    *x += y;
-                }
-                (a, fa)
-            },
-        );
+            }
+            (order.clone(), acc, facc)
+        })
+        .collect();
+    let mut acc = vec![G2::default(); n];
+    let mut facc = vec![0.0; n * k];
+    for (order, a, fa) in per_tile {
+        for (slot, &pi) in order.iter().enumerate() {
+            let (x, y) = (&mut acc[pi], &a[slot]);
+            for c in 0..2 {
+                x.mean[c] += y.mean[c];
+            }
+            for c in 0..3 {
+                x.conic[c] += y.conic[c];
+                x.color[c] += y.color[c];
+                x.normal[c] += y.normal[c];
+            }
+            x.opacity += y.opacity;
+            x.depth += y.depth;
+            for c in 0..k {
+                facc[pi * k + c] += fa[slot * k + c];
+            }
+        }
+    }
     let m = g.len();
     let mut out = Gradients {
         means: vec![[0.0; 3]; m],

@@ -8,6 +8,7 @@ pub mod camera;
 pub mod gaussians;
 pub mod ply;
 pub mod project;
+pub mod random;
 pub mod render;
 pub mod sh;
 

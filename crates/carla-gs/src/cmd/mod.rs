@@ -7,3 +7,4 @@ pub mod metrics;
 pub mod progress;
 pub mod reason;
 pub mod simulate;
+pub mod splat;

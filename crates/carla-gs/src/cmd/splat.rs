@@ -1,0 +1,133 @@
+//! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png>` and
+//! `carla-gs bench-splat [--gaussians N --width W --height H --iters K] --out <json>`.
+//! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
+//! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far).
+use anyhow::Context;
+use splat::backward::{render_backward, Upstream};
+use splat::render::{render as rasterize, Features, RenderOptions};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    model: PathBuf,
+    #[arg(long)]
+    camera: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    /// Background colour r,g,b in [0, 1].
+    #[arg(long, default_value = "0,0,0")]
+    background: String,
+    #[arg(long)]
+    antialiased: bool,
+}
+
+fn read_camera(path: &PathBuf) -> anyhow::Result<splat::Camera> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let cam: splat::Camera =
+        serde_json::from_str(&text).with_context(|| format!("{}: not a camera JSON", path.display()))?;
+    cam.validate().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(cam)
+}
+
+pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    let g = splat::ply::read_ply(&a.model)?;
+    g.validate()?;
+    let cam = read_camera(&a.camera)?;
+    let bg: Vec<f64> = a
+        .background
+        .split(',')
+        .map(|s| s.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .context("--background: expected r,g,b")?;
+    anyhow::ensure!(bg.len() == 3, "--background: expected three numbers r,g,b");
+    let opts = RenderOptions { background: [bg[0], bg[1], bg[2]], antialiased: a.antialiased, ..Default::default() };
+    let t = Instant::now();
+    let img = rasterize(&g, &cam, &Features::default(), &opts);
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let bytes: Vec<u8> = img.rgb.iter().flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
+    let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).context("image buffer size")?;
+    let tmp = a.out.with_extension("tmp.png");
+    buf.save(&tmp).with_context(|| format!("{}: cannot write", tmp.display()))?;
+    std::fs::rename(&tmp, &a.out).with_context(|| format!("{}: cannot write", a.out.display()))?;
+    println!("rendered {} Gaussians at {}x{} in {ms:.1} ms -> {}", g.len(), img.width, img.height, a.out.display());
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Comma-separated cases NxWxH.
+    #[arg(long, default_value = "100000x480x320,1000000x1920x1280")]
+    cases: String,
+    #[arg(long, default_value_t = 3)]
+    iters: usize,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
+    let mut results = Vec::new();
+    for case in a.cases.split(',') {
+        let v: Vec<usize> = case
+            .split('x')
+            .map(|s| s.trim().parse())
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("--cases: `{case}` is not NxWxH"))?;
+        anyhow::ensure!(v.len() == 3, "--cases: `{case}` is not NxWxH");
+        let (n, w, h) = (v[0], v[1] as u32, v[2] as u32);
+        let cam = splat::Camera {
+            width: w,
+            height: h,
+            fx: 0.8 * w as f64,
+            fy: 0.8 * w as f64,
+            cx: w as f64 / 2.0,
+            cy: h as f64 / 2.0,
+            camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+            near: 0.01,
+            far: 1e4,
+        };
+        let g = splat::random::random_gaussians(n, &cam, 3, 7);
+        let opts = RenderOptions::default();
+        let (mut fwd, mut both) = (Vec::new(), Vec::new());
+        for _ in 0..a.iters {
+            let t = Instant::now();
+            let img = rasterize(&g, &cam, &Features::default(), &opts);
+            fwd.push(t.elapsed().as_secs_f64());
+            let ones = vec![[1.0; 3]; img.alpha.len()];
+            let zeros = vec![0.0; img.alpha.len()];
+            let up = Upstream {
+                rgb: &ones,
+                alpha: &zeros,
+                depth: &zeros,
+                normal: &vec![[0.0; 3]; img.alpha.len()],
+                features: &[],
+            };
+            let t2 = Instant::now();
+            let _grads = render_backward(&g, &cam, &Features::default(), &opts, &up);
+            both.push(fwd[fwd.len() - 1] + t2.elapsed().as_secs_f64());
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (f, b) = (median(&mut fwd), median(&mut both));
+        println!(
+            "{n} Gaussians at {w}x{h}: forward {:.3} s ({:.2}/s), forward+backward {:.3} s ({:.2}/s)",
+            f,
+            1.0 / f,
+            b,
+            1.0 / b
+        );
+        results.push(serde_json::json!({"gaussians": n, "width": w, "height": h, "iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon_threads()}));
+    }
+    std::fs::write(
+        &a.out,
+        serde_json::to_vec_pretty(&serde_json::json!({"benchmark": "splat CPU rasterizer", "results": results}))?,
+    )?;
+    println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}

@@ -1,0 +1,47 @@
+//! `carla-gs render-ply`: a PLY and a camera JSON in, a PNG of the right size out; bad cameras
+//! and missing files give exit code 2 with the file named.
+
+use std::process::Command;
+
+fn carla_gs(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
+}
+
+#[test]
+fn renders_a_ply_to_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let cam = splat::Camera {
+        width: 64,
+        height: 48,
+        fx: 50.0,
+        fy: 50.0,
+        cx: 32.0,
+        cy: 24.0,
+        camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+        near: 0.01,
+        far: 100.0,
+    };
+    let g = splat::random::random_gaussians(2000, &cam, 1, 3);
+    let ply = dir.path().join("m.ply");
+    splat::ply::write_ply(&ply, &g).unwrap();
+    let cam_path = dir.path().join("cam.json");
+    std::fs::write(&cam_path, serde_json::to_vec(&cam).unwrap()).unwrap();
+    let png = dir.path().join("out.png");
+    let p = |x: &std::path::Path| x.to_str().unwrap().to_string();
+    let out =
+        carla_gs(&["render-ply", &p(&ply), "--camera", &p(&cam_path), "--out", &p(&png), "--background", "0,0,1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (64, 48));
+    let distinct: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    assert!(distinct.len() > 50, "the render looks blank: {} colours", distinct.len());
+
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"width": 0, "height": 4, "fx": 1, "fy": 1, "cx": 0, "cy": 0, "camera_from_world": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#).unwrap();
+    let out = carla_gs(&["render-ply", &p(&ply), "--camera", &p(&bad), "--out", &p(&png)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("width and height must be positive"));
+    let out = carla_gs(&["render-ply", &p(&dir.path().join("none.ply")), "--camera", &p(&cam_path), "--out", &p(&png)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("none.ply"));
+}
