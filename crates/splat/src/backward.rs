@@ -19,6 +19,7 @@ use crate::gaussians::Gaussians;
 use crate::project::ALPHA_MIN;
 use crate::project::{Frame, Projected};
 use crate::render::{bin, project_all_full, Features, RenderOptions, ALPHA_MAX, TILE, T_MIN};
+use crate::render::{hot, Hot};
 use crate::sh::basis_grad;
 use rayon::prelude::*;
 
@@ -60,6 +61,7 @@ fn pixel_backward(
     q: [f64; 2],
     pix: usize,
     order: &[usize],
+    hot: &[Hot],
     proj: &[(Projected, Frame)],
     feats: &Features,
     opts: &RenderOptions,
@@ -73,14 +75,16 @@ fn pixel_backward(
     // (tile-local slot, projected index, alpha, T before, power, clamped)
     let mut hits: Vec<(usize, usize, f64, f64, f64, bool)> = Vec::new();
     let mut t = 1.0;
-    for (slot, &pi) in order.iter().enumerate() {
-        let g = &proj[pi].0;
-        let (dx, dy) = (q[0] - g.mean[0], q[1] - g.mean[1]);
-        let power = -0.5 * (g.conic[0] * dx * dx + g.conic[2] * dy * dy) - g.conic[1] * dx * dy;
-        if power > 0.0 {
+    for (slot, (&pi, h)) in order.iter().zip(hot).enumerate() {
+        let (dx, dy) = (q[0] - h[0], q[1] - h[1]);
+        if !opts.smooth && (dx.abs() > h[6] || dy.abs() > h[6]) {
             continue;
         }
-        let raw = g.opacity * power.exp();
+        let power = -0.5 * (h[2] * dx * dx + h[4] * dy * dy) - h[3] * dx * dy;
+        if power > 0.0 || (!opts.smooth && power < h[7]) {
+            continue;
+        }
+        let raw = h[5] * power.exp();
         let clamped = !opts.smooth && raw > ALPHA_MAX;
         let alpha = if clamped { ALPHA_MAX } else { raw };
         if !opts.smooth && alpha < ALPHA_MIN {
@@ -340,6 +344,7 @@ pub fn render_backward(
         .enumerate()
         .map(|(ti, order)| {
             let (bx, by) = ((ti % tx) * TILE, (ti / tx) * TILE);
+            let hot = hot(&projected, order);
             let mut acc = vec![G2::default(); order.len()];
             let mut facc = vec![0.0; order.len() * k];
             for y in by..(by + TILE).min(h) {
@@ -348,6 +353,7 @@ pub fn render_backward(
                         [x as f64 + 0.5, y as f64 + 0.5],
                         y * w + x,
                         order,
+                        &hot,
                         &proj,
                         feats,
                         opts,

@@ -50,9 +50,36 @@ pub struct Features<'a> {
 
 /// One pixel's accumulation over depth-sorted candidates.
 #[allow(clippy::too_many_arguments)]
+/// The inner-loop data of one depth-ordered candidate: mean x, y, conic a, b, c, opacity,
+/// radius, and the exponent below which alpha < 1/255 (`ln(1 / (255 o))`, so faint
+/// contributions are rejected without calling `exp`). Compact, so a tile's candidates stay in
+/// cache while its pixels scan them.
+pub type Hot = [f64; 8];
+
+pub fn hot(proj: &[Projected], order: &[usize]) -> Vec<Hot> {
+    order
+        .iter()
+        .map(|&pi| {
+            let g = &proj[pi];
+            [
+                g.mean[0],
+                g.mean[1],
+                g.conic[0],
+                g.conic[1],
+                g.conic[2],
+                g.opacity,
+                g.radius,
+                (ALPHA_MIN / g.opacity).ln(),
+            ]
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
 fn composite(
     q: [f64; 2],
     order: &[usize],
+    hot: &[Hot],
     proj: &[Projected],
     feats: &Features,
     opts: &RenderOptions,
@@ -61,14 +88,17 @@ fn composite(
 ) -> ([f64; 3], f64, f64, [f64; 3]) {
     let (mut rgb, mut depth, mut n) = ([0.0; 3], 0.0, [0.0; 3]);
     let mut t = 1.0;
-    for &pi in order {
-        let g = &proj[pi];
-        let (dx, dy) = (q[0] - g.mean[0], q[1] - g.mean[1]);
-        let power = -0.5 * (g.conic[0] * dx * dx + g.conic[2] * dy * dy) - g.conic[1] * dx * dy;
-        if power > 0.0 {
+    for (slot, h) in hot.iter().enumerate() {
+        let (dx, dy) = (q[0] - h[0], q[1] - h[1]);
+        // Outside the radius alpha < 1/255: skipped below anyway, cheaply here.
+        if !opts.smooth && (dx.abs() > h[6] || dy.abs() > h[6]) {
             continue;
         }
-        let raw = g.opacity * power.exp();
+        let power = -0.5 * (h[2] * dx * dx + h[4] * dy * dy) - h[3] * dx * dy;
+        if power > 0.0 || (!opts.smooth && power < h[7]) {
+            continue;
+        }
+        let raw = h[5] * power.exp();
         let alpha = if opts.smooth { raw } else { raw.min(ALPHA_MAX) };
         if !opts.smooth && alpha < ALPHA_MIN {
             continue;
@@ -77,6 +107,7 @@ fn composite(
         if !opts.smooth && next < T_MIN {
             break;
         }
+        let g = &proj[order[slot]];
         let w = alpha * t;
         for (o, c) in rgb.iter_mut().zip(g.color) {
             *o += w * c.max(0.0);
@@ -172,12 +203,13 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
         .enumerate()
         .map(|(ti, order)| {
             let (bx, by) = ((ti % tx) * TILE, (ti / tx) * TILE);
+            let hot = hot(&proj, order);
             let mut px = Vec::with_capacity(TILE * TILE);
             for y in by..(by + TILE).min(h) {
                 for x in bx..(bx + TILE).min(w) {
                     let mut f = vec![0.0; feats.channels];
                     let (c, a, d, n) =
-                        composite([x as f64 + 0.5, y as f64 + 0.5], order, &proj, feats, opts, &nrot, &mut f);
+                        composite([x as f64 + 0.5, y as f64 + 0.5], order, &hot, &proj, feats, opts, &nrot, &mut f);
                     px.push((y * w + x, c, a, d, n, f));
                 }
             }
@@ -205,11 +237,13 @@ pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &
     });
     let mut img = blank(cam, feats.channels);
     let nrot = rotation_of(cam, opts);
+    let hot = hot(&proj, &order);
     for y in 0..img.height {
         for x in 0..img.width {
             let i = y * img.width + x;
             let mut f = vec![0.0; feats.channels];
-            let (c, a, d, n) = composite([x as f64 + 0.5, y as f64 + 0.5], &order, &proj, feats, opts, &nrot, &mut f);
+            let (c, a, d, n) =
+                composite([x as f64 + 0.5, y as f64 + 0.5], &order, &hot, &proj, feats, opts, &nrot, &mut f);
             img.rgb[i] = c;
             img.alpha[i] = a;
             img.depth[i] = d;
