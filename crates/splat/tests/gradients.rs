@@ -220,3 +220,35 @@ fn analytic_gradients_match_finite_differences() {
         }
     }
 }
+
+#[test]
+fn backward_on_degenerate_inputs_is_finite() {
+    let cam = camera();
+    let (mut g, fv) = scene(5);
+    g.log_scales[0] = [-80.0; 3]; // zero size
+    g.means[1] = [0.0, 0.0, -3.0]; // behind the camera
+    g.rotations[2] = [0.0; 4]; // not a rotation
+    g.opacity_logits[3] = 40.0; // alpha clamps at 0.99
+    g.log_scales[4] = [3.0; 3]; // covers everything
+    let n_px = (cam.width * cam.height) as usize;
+    let w = weights(Channel::Rgb, n_px, 1);
+    let f = Features { values: &fv, channels: 2 };
+    let up = Upstream { rgb: &w.rgb, alpha: &w.alpha, depth: &w.depth, normal: &w.normal, features: &w.features };
+    for aa in [false, true] {
+        let opts = RenderOptions { antialiased: aa, ..Default::default() };
+        let gr = render_backward(&g, &cam, &f, &opts, &up);
+        let all = gr
+            .means
+            .iter()
+            .flatten()
+            .chain(gr.log_scales.iter().flatten())
+            .chain(gr.rotations.iter().flatten())
+            .chain(&gr.opacity_logits)
+            .chain(&gr.sh)
+            .chain(&gr.features);
+        assert!(all.clone().all(|v| v.is_finite()), "non-finite gradient (aa {aa})");
+        assert!(all.clone().any(|v| *v != 0.0), "no gradient at all (aa {aa})");
+        // The Gaussian behind the camera is culled: no gradient reaches it.
+        assert_eq!(gr.means[1], [0.0; 3]);
+    }
+}
