@@ -16,10 +16,9 @@
 
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
-use crate::project::ALPHA_MIN;
 use crate::project::{Frame, Projected};
-use crate::render::{bin, project_all_full, Features, RenderOptions, ALPHA_MAX, TILE, T_MIN};
-use crate::render::{hot, Hot};
+use crate::render::{alpha_at, hot, Hot};
+use crate::render::{bin, project_all_full, Features, RenderOptions, TILE, T_MIN};
 use crate::sh::basis_grad;
 use rayon::prelude::*;
 
@@ -76,20 +75,7 @@ fn pixel_backward(
     let mut hits: Vec<(usize, usize, f64, f64, f64, bool)> = Vec::new();
     let mut t = 1.0;
     for (slot, (&pi, h)) in order.iter().zip(hot).enumerate() {
-        let (dx, dy) = (q[0] - h[0], q[1] - h[1]);
-        if !opts.smooth && (dx.abs() > h[6] || dy.abs() > h[6]) {
-            continue;
-        }
-        let power = -0.5 * (h[2] * dx * dx + h[4] * dy * dy) - h[3] * dx * dy;
-        if power > 0.0 || (!opts.smooth && power < h[7]) {
-            continue;
-        }
-        let raw = h[5] * power.exp();
-        let clamped = !opts.smooth && raw > ALPHA_MAX;
-        let alpha = if clamped { ALPHA_MAX } else { raw };
-        if !opts.smooth && alpha < ALPHA_MIN {
-            continue;
-        }
+        let Some((alpha, power, clamped)) = alpha_at(h, q, opts.smooth) else { continue };
         let next = t * (1.0 - alpha);
         if !opts.smooth && next < T_MIN {
             break;

@@ -5,18 +5,19 @@ use crate::camera::Camera;
 use crate::gaussians::Gaussians;
 use crate::sh::sh_coeffs;
 
-struct XorShift(u64);
+/// A small seeded xorshift generator (uniform f64 in [0, 1)), shared by benchmarks and tests.
+pub struct XorShift(pub u64);
 
 impl XorShift {
-    fn next(&mut self) -> f64 {
+    pub fn uniform(&mut self) -> f64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
         (self.0 >> 11) as f64 / (1u64 << 53) as f64
     }
 
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
     }
 }
 

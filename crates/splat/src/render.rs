@@ -75,6 +75,29 @@ pub fn hot(proj: &[Projected], order: &[usize]) -> Vec<Hot> {
         .collect()
 }
 
+/// Alpha of candidate `h` at pixel centre `q`: `None` if it does not contribute (outside its
+/// radius, power > 0, or below 1/255); else `(alpha, power, clamped at 0.99)`. The one definition
+/// the forward and backward passes share.
+#[inline]
+pub fn alpha_at(h: &Hot, q: [f64; 2], smooth: bool) -> Option<(f64, f64, bool)> {
+    let (dx, dy) = (q[0] - h[0], q[1] - h[1]);
+    // Outside the radius alpha < 1/255: rejected before any arithmetic.
+    if !smooth && (dx.abs() > h[6] || dy.abs() > h[6]) {
+        return None;
+    }
+    let power = -0.5 * (h[2] * dx * dx + h[4] * dy * dy) - h[3] * dx * dy;
+    if power > 0.0 || (!smooth && power < h[7]) {
+        return None;
+    }
+    let raw = h[5] * power.exp();
+    let clamped = !smooth && raw > ALPHA_MAX;
+    let alpha = if clamped { ALPHA_MAX } else { raw };
+    if !smooth && alpha < ALPHA_MIN {
+        return None;
+    }
+    Some((alpha, power, clamped))
+}
+
 #[allow(clippy::too_many_arguments)]
 fn composite(
     q: [f64; 2],
@@ -89,20 +112,7 @@ fn composite(
     let (mut rgb, mut depth, mut n) = ([0.0; 3], 0.0, [0.0; 3]);
     let mut t = 1.0;
     for (slot, h) in hot.iter().enumerate() {
-        let (dx, dy) = (q[0] - h[0], q[1] - h[1]);
-        // Outside the radius alpha < 1/255: skipped below anyway, cheaply here.
-        if !opts.smooth && (dx.abs() > h[6] || dy.abs() > h[6]) {
-            continue;
-        }
-        let power = -0.5 * (h[2] * dx * dx + h[4] * dy * dy) - h[3] * dx * dy;
-        if power > 0.0 || (!opts.smooth && power < h[7]) {
-            continue;
-        }
-        let raw = h[5] * power.exp();
-        let alpha = if opts.smooth { raw } else { raw.min(ALPHA_MAX) };
-        if !opts.smooth && alpha < ALPHA_MIN {
-            continue;
-        }
+        let Some((alpha, _, _)) = alpha_at(h, q, opts.smooth) else { continue };
         let next = t * (1.0 - alpha);
         if !opts.smooth && next < T_MIN {
             break;

@@ -4,19 +4,7 @@
 use splat::render::{render, render_brute_force, Features, Image, RenderOptions};
 use splat::{Camera, Gaussians};
 
-/// A small deterministic generator (xorshift) so the tests need no RNG crate.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next() as f64
-    }
-}
+use splat::random::XorShift as Rng;
 
 fn camera(w: u32, h: u32) -> Camera {
     Camera {

@@ -7,18 +7,7 @@ use splat::backward::{render_backward, Upstream};
 use splat::render::{render, Features, Image, RenderOptions};
 use splat::{Camera, Gaussians};
 
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
+use splat::random::XorShift as Rng;
 
 fn camera() -> Camera {
     // Yawed and pitched a little, looking down +z.
