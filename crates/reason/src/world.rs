@@ -68,11 +68,6 @@ pub struct World<'a> {
     pub t_last: f64,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
 fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
     let run = scene.track_segments(track).into_iter().find(|r| r[0].t <= t0 + 1e-9 && r[r.len() - 1].t >= t0 - 1e-9)?;
     let now = kin_at(&run, t0).or_else(|| {
@@ -81,13 +76,8 @@ fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
         let v = track.valid_states().find(|s| (scene.frames[s.frame].timestamp_s - t0).abs() < 1e-6)?.velocity?;
         Some(Kin { t: t0, p: p.position(), v: DVec2::new(v.x, v.y), heading: p.heading })
     })?;
-    Some(Vehicle {
-        id: track.id.clone(),
-        length: median(track.valid_states().map(|s| s.size_lwh[0]).collect()),
-        width: median(track.valid_states().map(|s| s.size_lwh[1]).collect()),
-        run,
-        now,
-    })
+    let [length, width, _] = track.median_size_lwh();
+    Some(Vehicle { id: track.id.clone(), length, width, run, now })
 }
 
 impl<'a> World<'a> {

@@ -65,4 +65,14 @@ impl Track {
     pub fn valid_states(&self) -> impl Iterator<Item = &TrackState> {
         self.states.iter().filter(|s| s.valid)
     }
+
+    /// Median length, width and height over the valid states (each dimension separately;
+    /// zeros without valid states): one box size for the whole track, robust to label jitter.
+    pub fn median_size_lwh(&self) -> [f64; 3] {
+        std::array::from_fn(|k| {
+            let mut v: Vec<f64> = self.valid_states().map(|s| s.size_lwh[k]).collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(0.0)
+        })
+    }
 }

@@ -26,11 +26,6 @@ pub fn cuboid(length: f64, width: f64) -> (Cuboid, f64) {
     (Cuboid::new(Vector::new(length / 2.0, width / 2.0)), 0.5 * length.hypot(width))
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(0.0)
-}
-
 /// The ego and every track except `exclude`, ready for contact queries.
 pub fn replayed_actors(scene: &Scene, exclude: &str) -> Vec<Replayed> {
     let [l, w, _] = scene.ego.size_lwh;
@@ -46,8 +41,7 @@ pub fn replayed_actors(scene: &Scene, exclude: &str) -> Vec<Replayed> {
         if t.id == exclude || scene.ego.track_id.as_deref() == Some(t.id.as_str()) {
             continue;
         }
-        let len = median(t.valid_states().map(|s| s.size_lwh[0]).collect());
-        let wid = median(t.valid_states().map(|s| s.size_lwh[1]).collect());
+        let [len, wid, _] = t.median_size_lwh();
         if len <= 0.0 || wid <= 0.0 {
             continue;
         }

@@ -43,11 +43,6 @@ pub const MAX_START_OFFSET_M: f64 = 5.0;
 pub const BACKEND: &str =
     "carla-gs physics: CommonRoad ST (vehicle2) + CARLA-like actuation + CARLA VehiclePIDController";
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Runs the plan. Checks the plan against the scene first.
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
     plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
@@ -85,7 +80,7 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
     let p0 = reference.position(t_start);
     let initial = [p0.x, p0.y, 0.0, v0, run[0].heading, 0.0, 0.0];
 
-    let size = [0, 1, 2].map(|k| median(adversary.valid_states().map(|s| s.size_lwh[k]).collect()));
+    let size = adversary.median_size_lwh();
     let (adv_box, adv_radius) = cuboid(size[0], size[1]);
     let actors = replayed_actors(scene, &adversary.id);
     let mut contact: Option<Contact> = None;

@@ -141,6 +141,22 @@ fn composite(
     (rgb, 1.0 - t, depth, n)
 }
 
+impl Image {
+    /// Stores one pixel's composite (rgb, alpha, depth, normal) and features.
+    fn set(&mut self, i: usize, (rgb, alpha, depth, normal): ([f64; 3], f64, f64, [f64; 3]), features: &[f64]) {
+        self.rgb[i] = rgb;
+        self.alpha[i] = alpha;
+        self.depth[i] = depth;
+        self.normal[i] = normal;
+        self.features[i * self.channels..(i + 1) * self.channels].copy_from_slice(features);
+    }
+}
+
+/// Front-to-back order: by depth, ties by Gaussian index (so every path sorts identically).
+fn by_depth(proj: &[Projected]) -> impl Fn(&usize, &usize) -> std::cmp::Ordering + '_ {
+    |a, b| (proj[*a].depth, proj[*a].index).partial_cmp(&(proj[*b].depth, proj[*b].index)).expect("finite depths")
+}
+
 fn blank(cam: &Camera, channels: usize) -> Image {
     let (w, h) = (cam.width as usize, cam.height as usize);
     Image {
@@ -194,8 +210,7 @@ pub fn bin(proj: &[Projected], w: usize, h: usize, smooth: bool) -> (usize, Vec<
             }
         }
     }
-    let key = |a: &usize| (proj[*a].depth, proj[*a].index);
-    tiles.par_iter_mut().for_each(|t| t.sort_by(|a, b| key(a).partial_cmp(&key(b)).expect("finite depths")));
+    tiles.par_iter_mut().for_each(|t| t.sort_by(by_depth(proj)));
     (tx, tiles)
 }
 
@@ -206,8 +221,8 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
     let (w, h) = (img.width, img.height);
     let (tx, tiles) = bin(&proj, w, h, opts.smooth);
     let nrot = rotation_of(cam, opts);
-    /// (pixel index, rgb, alpha, depth, normal, features)
-    type Pixel = (usize, [f64; 3], f64, f64, [f64; 3], Vec<f64>);
+    /// (pixel index, (rgb, alpha, depth, normal), features)
+    type Pixel = (usize, ([f64; 3], f64, f64, [f64; 3]), Vec<f64>);
     let done: Vec<(usize, Vec<Pixel>)> = tiles
         .par_iter()
         .enumerate()
@@ -218,21 +233,17 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
             for y in by..(by + TILE).min(h) {
                 for x in bx..(bx + TILE).min(w) {
                     let mut f = vec![0.0; feats.channels];
-                    let (c, a, d, n) =
+                    let out =
                         composite([x as f64 + 0.5, y as f64 + 0.5], order, &hot, &proj, feats, opts, &nrot, &mut f);
-                    px.push((y * w + x, c, a, d, n, f));
+                    px.push((y * w + x, out, f));
                 }
             }
             (ti, px)
         })
         .collect();
     for (_, px) in done {
-        for (i, c, a, d, n, f) in px {
-            img.rgb[i] = c;
-            img.alpha[i] = a;
-            img.depth[i] = d;
-            img.normal[i] = n;
-            img.features[i * feats.channels..(i + 1) * feats.channels].copy_from_slice(&f);
+        for (i, out, f) in px {
+            img.set(i, out, &f);
         }
     }
     img
@@ -242,9 +253,7 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
 pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
     let proj = project_all(g, cam, opts);
     let mut order: Vec<usize> = (0..proj.len()).collect();
-    order.sort_by(|a, b| {
-        (proj[*a].depth, proj[*a].index).partial_cmp(&(proj[*b].depth, proj[*b].index)).expect("finite depths")
-    });
+    order.sort_by(by_depth(&proj));
     let mut img = blank(cam, feats.channels);
     let nrot = rotation_of(cam, opts);
     let hot = hot(&proj, &order);
@@ -252,13 +261,8 @@ pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &
         for x in 0..img.width {
             let i = y * img.width + x;
             let mut f = vec![0.0; feats.channels];
-            let (c, a, d, n) =
-                composite([x as f64 + 0.5, y as f64 + 0.5], &order, &hot, &proj, feats, opts, &nrot, &mut f);
-            img.rgb[i] = c;
-            img.alpha[i] = a;
-            img.depth[i] = d;
-            img.normal[i] = n;
-            img.features[i * feats.channels..(i + 1) * feats.channels].copy_from_slice(&f);
+            let out = composite([x as f64 + 0.5, y as f64 + 0.5], &order, &hot, &proj, feats, opts, &nrot, &mut f);
+            img.set(i, out, &f);
         }
     }
     img
