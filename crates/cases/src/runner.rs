@@ -79,6 +79,13 @@ fn rank(m: &CaseMetrics) -> (bool, bool, f64) {
     (m.zone_hit, m.success_center, -m.min_ttc_center_s)
 }
 
+/// Total order on [`rank`] (a NaN MinTTC ranks as the worst, never panics).
+fn cmp_rank(a: &CaseMetrics, b: &CaseMetrics) -> std::cmp::Ordering {
+    let (ra, rb) = (rank(a), rank(b));
+    let key = |x: f64| if x.is_nan() { f64::NEG_INFINITY } else { x };
+    (ra.0, ra.1).cmp(&(rb.0, rb.1)).then(key(ra.2).total_cmp(&key(rb.2)))
+}
+
 /// The zone (if any) containing a point of the ego frame.
 pub fn zone_of(local: DVec2, plan: &Plan, l: f64, w: f64) -> Option<Zone> {
     Zone::ALL.into_iter().find(|z| zone_rect(*z, plan.zone_layout, l, w).contains(local))
@@ -188,7 +195,7 @@ pub fn run_case(
             Ok(m) => m,
             Err(e) => return fail("metrics", format!("round {r}: {e}")),
         };
-        let improved = rounds.iter().all(|x| rank(&m) > rank(&x.metrics));
+        let improved = rounds.iter().all(|x| cmp_rank(&m, &x.metrics).is_gt());
         let done = good(&m);
         let next = (!done && spec.agent.refines() && r < cfg.refine_rounds)
             .then(|| (feedback(&plan, &executed, &m), plan.clone()));
@@ -223,8 +230,7 @@ pub fn run_case(
             None => break,
         }
     }
-    let best = (0..rounds.len())
-        .max_by(|a, b| rank(&rounds[*a].metrics).partial_cmp(&rank(&rounds[*b].metrics)).unwrap().then(b.cmp(a)))
-        .unwrap_or(0);
+    let best =
+        (0..rounds.len()).max_by(|a, b| cmp_rank(&rounds[*a].metrics, &rounds[*b].metrics).then(b.cmp(a))).unwrap_or(0);
     (CaseResult { spec: spec.clone(), status: Status::Done { rounds, best } }, best_exec)
 }
