@@ -8,7 +8,8 @@
 //! Low-pass: `Sigma2 += 0.3 I`; in antialiased mode the opacity is multiplied by
 //! `sqrt(det Sigma2_before / det Sigma2_after)`. The screen radius is where alpha would fall
 //! below 1/255: `r = sqrt(2 ln(255 o) lambda_max)`, so no pixel beyond it can contribute and the
-//! tiled renderer equals a per-pixel brute-force one.
+//! tiled renderer equals a per-pixel brute-force one; the per-axis `extent` bounds the same
+//! ellipse more tightly for binning.
 
 use crate::camera::Camera;
 use crate::gaussians::{sigmoid, Gaussians};
@@ -30,6 +31,9 @@ pub struct Projected {
     /// Opacity after activation (and the antialiasing factor).
     pub opacity: f64,
     pub radius: f64,
+    /// Half-widths (x, y) of the ellipse's bounding box where alpha >= 1/255:
+    /// `sqrt(2 ln(255 o) Sigma2_xx)`, `sqrt(2 ln(255 o) Sigma2_yy)` (at most `radius`).
+    pub extent: [f64; 2],
     /// RGB from the SH at this view direction (before clamping at 0).
     pub color: [f64; 3],
     /// Unit normal in the camera frame: the axis of the smallest scale, facing the camera.
@@ -140,7 +144,9 @@ pub fn project_full(
     let conic = [cov[1][1] / det, -cov[0][1] / det, cov[0][0] / det];
     let mid = 0.5 * (cov[0][0] + cov[1][1]);
     let lambda = mid + (mid * mid - det).max(0.0).sqrt();
-    let radius = (2.0 * (255.0 * opacity).ln().max(0.0) * lambda).sqrt();
+    let level = 2.0 * (255.0 * opacity).ln().max(0.0);
+    let radius = (level * lambda).sqrt();
+    let extent = [(level * cov[0][0]).sqrt(), (level * cov[1][1]).sqrt()];
     let mean = [cam.fx * p[0] / z + cam.cx, cam.fy * p[1] / z + cam.cy];
     // Colour from SH at the view direction (world frame, camera centre to mean).
     let c = cam.center();
@@ -157,7 +163,9 @@ pub fn project_full(
     if flipped {
         n = n.map(|v| -v);
     }
-    let ok = mean.iter().chain(&conic).chain(&color).chain(&n).all(|v| v.is_finite()) && radius.is_finite();
+    let ok = mean.iter().chain(&conic).chain(&color).chain(&n).all(|v| v.is_finite())
+        && radius.is_finite()
+        && extent.iter().all(|v| v.is_finite());
     let frame = Frame {
         p,
         r,
@@ -175,5 +183,5 @@ pub fn project_full(
         kmin,
         flipped,
     };
-    ok.then_some((Projected { index: i, mean, conic, depth: z, opacity, radius, color, normal: n }, frame))
+    ok.then_some((Projected { index: i, mean, conic, depth: z, opacity, radius, extent, color, normal: n }, frame))
 }

@@ -3,8 +3,8 @@
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
 //! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far).
 use anyhow::Context;
-use splat::backward::{render_backward, Upstream};
-use splat::render::{render as rasterize, Features, RenderOptions};
+use splat::backward::{backward, Upstream};
+use splat::render::{render as rasterize, render_with_context, Features, RenderOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -91,7 +91,7 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         let (mut fwd, mut both) = (Vec::new(), Vec::new());
         for _ in 0..a.iters {
             let t = Instant::now();
-            let img = rasterize(&g, &cam, &Features::default(), &opts);
+            let (img, ctx) = render_with_context(&g, &cam, &Features::default(), &opts);
             fwd.push(t.elapsed().as_secs_f64());
             let ones = vec![[1.0; 3]; img.alpha.len()];
             let zeros = vec![0.0; img.alpha.len()];
@@ -103,7 +103,7 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
                 features: &[],
             };
             let t2 = Instant::now();
-            let _grads = render_backward(&g, &cam, &Features::default(), &opts, &up);
+            let _grads = backward(&g, &cam, &Features::default(), &opts, &ctx, &up);
             both.push(fwd[fwd.len() - 1] + t2.elapsed().as_secs_f64());
         }
         let median = |v: &mut Vec<f64>| {
@@ -120,10 +120,8 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         );
         results.push(serde_json::json!({"gaussians": n, "width": w, "height": h, "iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon_threads()}));
     }
-    std::fs::write(
-        &a.out,
-        serde_json::to_vec_pretty(&serde_json::json!({"benchmark": "splat CPU rasterizer", "results": results}))?,
-    )?;
+    let json = serde_json::json!({"benchmark": "splat CPU rasterizer", "results": results});
+    scene::write_file_atomic(&a.out, &serde_json::to_vec_pretty(&json)?)?;
     println!("wrote {}", a.out.display());
     Ok(())
 }
