@@ -32,7 +32,7 @@ pub struct Upstream<'a> {
 }
 
 /// Gradients with respect to the model's parameters (same layout as `Gaussians`).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Gradients {
     pub means: Vec<[f64; 3]>,
     pub log_scales: Vec<[f64; 3]>,
@@ -42,6 +42,24 @@ pub struct Gradients {
     pub features: Vec<f64>,
     /// |dL / d mean2d| per Gaussian (the screen-space gradient densification uses).
     pub mean2d_norm: Vec<f64>,
+}
+
+impl Gradients {
+    /// Sizes every array for `g` (and `channels` features per Gaussian), all zero, reusing memory.
+    pub fn reset(&mut self, g: &Gaussians, channels: usize) {
+        fn zero<T: Clone>(v: &mut Vec<T>, len: usize, z: T) {
+            v.clear();
+            v.resize(len, z);
+        }
+        let m = g.len();
+        zero(&mut self.means, m, [0.0; 3]);
+        zero(&mut self.log_scales, m, [0.0; 3]);
+        zero(&mut self.rotations, m, [0.0; 4]);
+        zero(&mut self.opacity_logits, m, 0.0);
+        zero(&mut self.sh, g.sh.len(), 0.0);
+        zero(&mut self.features, m * channels, 0.0);
+        zero(&mut self.mean2d_norm, m, 0.0);
+    }
 }
 
 /// Screen-space gradients of one projected Gaussian.
@@ -168,7 +186,9 @@ pub(crate) fn step_back(
 }
 
 /// From the screen-space gradients of every projected Gaussian (`acc[k]` for `proj[k]`) to the
-/// parameter gradients (rayon over Gaussians; each projected Gaussian owns its output slots).
+/// parameter gradients in `out` (reset here; rayon over Gaussians, each projected Gaussian owns
+/// its output slots).
+#[allow(clippy::too_many_arguments)]
 fn finish(
     g: &Gaussians,
     cam: &Camera,
@@ -177,22 +197,14 @@ fn finish(
     acc: &[G2],
     facc: &[f64],
     k: usize,
-) -> Gradients {
-    let m = g.len();
+    out: &mut Gradients,
+) {
     let kc = g.coeffs() * 3;
-    let mut slot_of = vec![u32::MAX; m];
+    out.reset(g, k);
+    let mut slot_of = vec![u32::MAX; g.len()];
     for (s, p) in proj.iter().enumerate() {
         slot_of[p.index] = s as u32;
     }
-    let mut out = Gradients {
-        means: vec![[0.0; 3]; m],
-        log_scales: vec![[0.0; 3]; m],
-        rotations: vec![[0.0; 4]; m],
-        opacity_logits: vec![0.0; m],
-        sh: vec![0.0; g.sh.len()],
-        features: vec![0.0; m * k],
-        mean2d_norm: vec![0.0; m],
-    };
     (
         out.means.par_iter_mut(),
         out.log_scales.par_iter_mut(),
@@ -221,7 +233,6 @@ fn finish(
     for (s, p) in proj.iter().enumerate() {
         out.features[p.index * k..(p.index + 1) * k].copy_from_slice(&facc[s * k..(s + 1) * k]);
     }
-    out
 }
 
 /// Gradients of `sum(upstream * outputs)` for the render that produced `ctx` (same inputs).
@@ -233,6 +244,21 @@ pub fn backward(
     ctx: &Context,
     up: &Upstream,
 ) -> Gradients {
+    let mut out = Gradients::default();
+    backward_into(g, cam, feats, opts, ctx, up, &mut out);
+    out
+}
+
+/// [`backward`] into existing gradients, reusing their memory (overwritten, not added to).
+pub fn backward_into(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+    ctx: &Context,
+    up: &Upstream,
+    out: &mut Gradients,
+) {
     let nrot = normal_rotation(cam, opts);
     let k = feats.channels;
     let per_tile: Vec<(Vec<G2>, Vec<f64>)> =
@@ -248,7 +274,7 @@ pub fn backward(
             }
         }
     }
-    finish(g, cam, opts, &ctx.proj, &acc, &facc, k)
+    finish(g, cam, opts, &ctx.proj, &acc, &facc, k, out);
 }
 
 /// Renders, then [`backward`]: gradients of `sum(upstream * outputs)` for a render with these inputs.
@@ -301,5 +327,7 @@ pub fn render_backward_brute_force(
             step_back(&pu, gf, &mut behind, &mut s_f, p, feats.of(p.index), q, step, &mut acc[s], fa);
         }
     }
-    finish(g, cam, opts, &proj, &acc, &facc, k)
+    let mut out = Gradients::default();
+    finish(g, cam, opts, &proj, &acc, &facc, k, &mut out);
+    out
 }

@@ -16,12 +16,13 @@
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
 use crate::project::Projected;
-use crate::render::{normal_rotation, output_normal, project_sorted, Features, Image, PixelSum, RenderOptions};
-use crate::tiles::{alpha_at, bin, spans, Hot, Tiles, TILE, T_MIN};
+use crate::render::{normal_rotation, output_normal, project_sorted_into, Features, Image, PixelSum, RenderOptions};
+use crate::tiles::{alpha_at, bin_into, spans, Hot, Tiles, TILE, T_MIN};
 use rayon::prelude::*;
 
-/// What the forward pass leaves for the backward pass.
-#[derive(Clone, Debug)]
+/// What the forward pass leaves for the backward pass. Keep one between iterations and render
+/// with [`render_into`] so its memory is reused.
+#[derive(Clone, Debug, Default)]
 pub struct Context {
     /// Projected Gaussians, front to back, and their inner-loop data.
     pub proj: Vec<Projected>,
@@ -31,6 +32,8 @@ pub struct Context {
     pub final_t: Vec<f64>,
     /// ...and how many of its tile's Gaussians (in order) it walked before stopping.
     pub last: Vec<u32>,
+    /// One projection slot per Gaussian (the parallel projection's output before compaction).
+    scratch: Vec<Option<Projected>>,
 }
 
 /// One tile's results (buffers indexed `(y - y0) * TILE + (x - x0)`).
@@ -92,16 +95,35 @@ pub fn render(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOption
 
 /// The tiled renderer, also returning what `backward::backward` needs.
 pub fn render_with_context(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> (Image, Context) {
-    let proj = project_sorted(g, cam, opts);
-    let hot = proj.iter().map(Hot::of).collect();
+    let (mut img, mut ctx) = (Image::default(), Context::default());
+    render_into(g, cam, feats, opts, &mut img, &mut ctx);
+    (img, ctx)
+}
+
+/// [`render_with_context`] into an existing image and context, reusing their memory (a training
+/// loop keeps both; fresh allocations of this size cost page faults every iteration).
+pub fn render_into(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+    img: &mut Image,
+    ctx: &mut Context,
+) {
+    project_sorted_into(g, cam, opts, &mut ctx.proj, &mut ctx.scratch);
+    ctx.hot.clear();
+    ctx.hot.extend(ctx.proj.iter().map(Hot::of));
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let tiles = bin(&proj, w, h, opts.smooth);
-    let mut ctx = Context { proj, hot, tiles, final_t: vec![1.0; w * h], last: vec![0; w * h] };
+    bin_into(&ctx.proj, w, h, opts.smooth, &mut ctx.tiles);
     let nrot = normal_rotation(cam, opts);
     let k = feats.channels;
     let outs: Vec<TileOut> =
-        (0..ctx.tiles.lists.len()).into_par_iter().map(|ti| tile_forward(&ctx, ti, feats, opts, &nrot)).collect();
-    let mut img = Image::blank(cam, k);
+        (0..ctx.tiles.lists.len()).into_par_iter().map(|ti| tile_forward(ctx, ti, feats, opts, &nrot)).collect();
+    img.reset(cam, k);
+    ctx.final_t.clear();
+    ctx.final_t.resize(w * h, 1.0);
+    ctx.last.clear();
+    ctx.last.resize(w * h, 0);
     for (ti, o) in outs.iter().enumerate() {
         ctx.tiles.rect(ti).for_each(w, |p, pix| {
             img.set(pix, &o.sum[p], o.t[p], opts.background, &o.feat[p * k..(p + 1) * k]);
@@ -109,5 +131,4 @@ pub fn render_with_context(g: &Gaussians, cam: &Camera, feats: &Features, opts: 
             ctx.last[pix] = o.last[p];
         });
     }
-    (img, ctx)
 }

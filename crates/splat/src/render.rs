@@ -15,7 +15,7 @@ use crate::project::{project_full, Projected};
 use crate::tiles::{alpha_at, sort_by_depth, Hot, T_MIN};
 use rayon::prelude::*;
 
-pub use crate::raster::{render, render_with_context, Context};
+pub use crate::raster::{render, render_into, render_with_context, Context};
 pub use crate::tiles::{ALPHA_MAX, TILE};
 
 #[derive(Clone, Debug, Default)]
@@ -31,7 +31,7 @@ pub struct RenderOptions {
 }
 
 /// Rendered channels, row-major, f64 (the reference precision).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Image {
     pub width: usize,
     pub height: usize,
@@ -85,16 +85,25 @@ impl PixelSum {
 
 impl Image {
     pub(crate) fn blank(cam: &Camera, channels: usize) -> Image {
-        let (w, h) = (cam.width as usize, cam.height as usize);
-        Image {
-            width: w,
-            height: h,
-            rgb: vec![[0.0; 3]; w * h],
-            alpha: vec![0.0; w * h],
-            depth: vec![0.0; w * h],
-            normal: vec![[0.0; 3]; w * h],
-            features: vec![0.0; w * h * channels],
-            channels,
+        let mut img = Image::default();
+        img.reset(cam, channels);
+        img
+    }
+
+    /// Sizes the image for `cam` with every channel zero, reusing its memory.
+    pub(crate) fn reset(&mut self, cam: &Camera, channels: usize) {
+        let n = cam.width as usize * cam.height as usize;
+        (self.width, self.height, self.channels) = (cam.width as usize, cam.height as usize, channels);
+        let zero = |v: &mut Vec<f64>, len| {
+            v.clear();
+            v.resize(len, 0.0);
+        };
+        zero(&mut self.alpha, n);
+        zero(&mut self.depth, n);
+        zero(&mut self.features, n * channels);
+        for v in [&mut self.rgb, &mut self.normal] {
+            v.clear();
+            v.resize(n, [0.0; 3]);
         }
     }
 
@@ -125,12 +134,29 @@ pub fn normal_rotation(cam: &Camera, opts: &RenderOptions) -> Option<[[f64; 3]; 
 
 /// Projects every Gaussian (culled ones are dropped), sorted front to back.
 pub fn project_sorted(g: &Gaussians, cam: &Camera, opts: &RenderOptions) -> Vec<Projected> {
-    let mut proj: Vec<Projected> = (0..g.len())
-        .into_par_iter()
-        .filter_map(|i| project_full(g, i, cam, opts.antialiased, opts.smooth).map(|(p, _)| p))
-        .collect();
-    sort_by_depth(&mut proj);
+    let (mut proj, mut scratch) = (Vec::new(), Vec::new());
+    project_sorted_into(g, cam, opts, &mut proj, &mut scratch);
     proj
+}
+
+/// [`project_sorted`] into `proj`, with `scratch` (one slot per Gaussian) for the parallel pass;
+/// both keep their memory between calls.
+pub fn project_sorted_into(
+    g: &Gaussians,
+    cam: &Camera,
+    opts: &RenderOptions,
+    proj: &mut Vec<Projected>,
+    scratch: &mut Vec<Option<Projected>>,
+) {
+    scratch.resize(g.len(), None);
+    scratch.truncate(g.len());
+    scratch
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(i, slot)| *slot = project_full(g, i, cam, opts.antialiased, opts.smooth).map(|(p, _)| p));
+    proj.clear();
+    proj.extend(scratch.iter().flatten());
+    sort_by_depth(proj);
 }
 
 /// The reference: every pixel walks every Gaussian in depth order (no tiles, no spans).

@@ -96,7 +96,7 @@ impl Rect {
 
 /// Per tile (row-major), the indices into the depth-ordered projection of the Gaussians that can
 /// touch it; each list is in depth order because the projection is.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Tiles {
     pub tx: usize,
     pub width: usize,
@@ -119,8 +119,18 @@ pub fn sort_by_depth(proj: &mut [Projected]) {
 
 /// Bins depth-ordered Gaussians into tiles. In smooth mode every tile gets every Gaussian.
 pub fn bin(proj: &[Projected], width: usize, height: usize, smooth: bool) -> Tiles {
+    let mut tiles = Tiles::default();
+    bin_into(proj, width, height, smooth, &mut tiles);
+    tiles
+}
+
+/// [`bin`] into existing tile lists (their memory is reused).
+pub fn bin_into(proj: &[Projected], width: usize, height: usize, smooth: bool, tiles: &mut Tiles) {
     let (tx, ty) = (width.div_ceil(TILE), height.div_ceil(TILE));
-    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); tx * ty];
+    tiles.lists.resize_with(tx * ty, Vec::new);
+    tiles.lists.iter_mut().for_each(Vec::clear);
+    (tiles.tx, tiles.width, tiles.height) = (tx, width, height);
+    let lists = &mut tiles.lists;
     for (pi, p) in proj.iter().enumerate() {
         let (x0, x1, y0, y1) = if smooth {
             (0.0, tx as f64 - 1.0, 0.0, ty as f64 - 1.0)
@@ -142,7 +152,6 @@ pub fn bin(proj: &[Projected], width: usize, height: usize, smooth: bool) -> Til
             }
         }
     }
-    Tiles { tx, width, height, lists }
 }
 
 /// One row of pixels a Gaussian may reach in a tile: columns `x0..x1` of row `y` (image pixels).

@@ -3,8 +3,8 @@
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
 //! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far).
 use anyhow::Context;
-use splat::backward::{backward, Upstream};
-use splat::render::{render as rasterize, render_with_context, Features, RenderOptions};
+use splat::backward::{backward_into, Gradients, Upstream};
+use splat::render::{render as rasterize, render_into, Context as RenderContext, Features, Image, RenderOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -89,21 +89,18 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         let g = splat::random::random_gaussians(n, &cam, 3, 7);
         let opts = RenderOptions::default();
         let (mut fwd, mut both) = (Vec::new(), Vec::new());
+        // Like a training loop: the image, context and gradients keep their memory between
+        // iterations; upstream gradients d loss / d rgb = 1.
+        let n_px = w as usize * h as usize;
+        let (ones, zeros, zeros3) = (vec![[1.0; 3]; n_px], vec![0.0; n_px], vec![[0.0; 3]; n_px]);
+        let up = Upstream { rgb: &ones, alpha: &zeros, depth: &zeros, normal: &zeros3, features: &[] };
+        let (mut img, mut ctx, mut grads) = (Image::default(), RenderContext::default(), Gradients::default());
         for _ in 0..a.iters {
             let t = Instant::now();
-            let (img, ctx) = render_with_context(&g, &cam, &Features::default(), &opts);
+            render_into(&g, &cam, &Features::default(), &opts, &mut img, &mut ctx);
             fwd.push(t.elapsed().as_secs_f64());
-            let ones = vec![[1.0; 3]; img.alpha.len()];
-            let zeros = vec![0.0; img.alpha.len()];
-            let up = Upstream {
-                rgb: &ones,
-                alpha: &zeros,
-                depth: &zeros,
-                normal: &vec![[0.0; 3]; img.alpha.len()],
-                features: &[],
-            };
             let t2 = Instant::now();
-            let _grads = backward(&g, &cam, &Features::default(), &opts, &ctx, &up);
+            backward_into(&g, &cam, &Features::default(), &opts, &ctx, &up, &mut grads);
             both.push(fwd[fwd.len() - 1] + t2.elapsed().as_secs_f64());
         }
         let median = |v: &mut Vec<f64>| {
