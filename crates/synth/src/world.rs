@@ -63,17 +63,17 @@ impl VehicleModel {
         let mut parts = Vec::new();
         let (r, axles) = match v.style {
             Style::Sedan => {
-                parts.push((b(-hl, hl, hw - 0.06, 0.2, 0.45 * h + 0.18), Part::Body));
-                parts.push((b(-hl + 0.16 * l, hl - 0.30 * l, hw - 0.14, 0.45 * h + 0.18, h), Part::Cabin));
-                (0.33, [hl - 0.8, -hl + 0.85])
+                parts.push((b(-hl, hl, hw - 0.01, 0.1, 0.45 * h + 0.18), Part::Body));
+                parts.push((b(-hl + 0.16 * l, hl - 0.27 * l, hw - 0.14, 0.45 * h + 0.18, h), Part::Cabin));
+                (0.33, [hl - 0.7, -hl + 0.65])
             }
             Style::Van => {
-                parts.push((b(-hl, hl, hw - 0.06, 0.2, 0.5 * h), Part::Body));
+                parts.push((b(-hl, hl, hw - 0.01, 0.1, 0.5 * h), Part::Body));
                 parts.push((b(-hl + 0.02, hl - 0.16 * l, hw - 0.08, 0.5 * h, h), Part::Cabin));
-                (0.36, [hl - 0.85, -hl + 0.85])
+                (0.36, [hl - 0.75, -hl + 0.7])
             }
             Style::Truck => {
-                parts.push((b(-hl, hl, hw - 0.1, 0.35, 1.15), Part::Body));
+                parts.push((b(-hl, hl, hw - 0.03, 0.3, 1.15), Part::Body));
                 parts.push((b(-hl, hl - 2.1, hw - 0.02, 1.15, h), Part::Cargo));
                 parts.push((b(hl - 2.0, hl, hw - 0.06, 1.15, 0.85 * h), Part::Cabin));
                 (0.48, [hl - 1.1, -hl + 1.4])

@@ -11,14 +11,14 @@ use std::sync::OnceLock;
 use synth::geometry::Ray;
 use synth::{gt, raycast, Sequence, SynthConfig, SynthError};
 
-/// One scene shared by the tests of this file: 12 frames, all 5 cameras, 240 x 160 (the
+/// One scene shared by the tests of this file: 8 frames, all 5 cameras, 480 x 320 (the
 /// temporary directory lives as long as the test binary).
 fn fixture() -> (&'static Path, &'static SynthConfig) {
     static FIXTURE: OnceLock<(tempfile::TempDir, PathBuf, SynthConfig)> = OnceLock::new();
     let (_, dir, cfg) = FIXTURE.get_or_init(|| {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("scene");
-        let cfg = SynthConfig { frames: 12, cameras: 5, width: 240, height: 160, seed: 7, ..Default::default() };
+        let cfg = SynthConfig { frames: 8, cameras: 5, width: 480, height: 320, seed: 7, ..Default::default() };
         synth::synthesize(&cfg, &dir, &mut |_, _| {}).unwrap();
         (tmp, dir, cfg)
     });
@@ -33,7 +33,7 @@ fn scene() -> Scene {
 fn loads_as_a_scene_with_every_kind_of_motion() {
     let s = scene();
     assert_eq!(s.source.kind, scene::SourceKind::Synthetic);
-    assert_eq!(s.frames.len(), 12);
+    assert_eq!(s.frames.len(), 8);
     for (i, f) in s.frames.iter().enumerate() {
         assert!((f.timestamp_s - i as f64 * 0.1).abs() < 1e-12);
         assert_eq!(f.images.len(), 5);
@@ -70,8 +70,8 @@ fn loads_as_a_scene_with_every_kind_of_motion() {
 /// A vehicle counts in a camera and frame when (a) all 8 box corners are in front of the camera
 /// and project inside the image, (b) it is unoccluded: its instance pixels in the written map
 /// are exactly the pixels it covers when ray cast alone (nothing else in the world), and (c) it
-/// covers at least 150 pixels (below that, one pixel row is > 5% of the box and IoU measures
-/// quantisation). Then every instance pixel centre must lie inside the projected box's
+/// covers at least 300 pixels (below that, the half-pixel quantisation of each rectangle edge
+/// alone costs several per cent of IoU). Then every instance pixel centre must lie inside the projected box's
 /// bounding rectangle and the IoU of that rectangle with the instance pixels' rectangle must
 /// exceed 0.9.
 #[test]
@@ -82,7 +82,7 @@ fn projected_boxes_cover_instance_pixels() {
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("gt/gt.json")).unwrap()).unwrap();
     let mut checked = 0;
-    for f in [0, 5, 11] {
+    for f in [0, 4, 7] {
         let frame = &s.frames[f];
         let ego_from_world = frame.world_from_ego.inverse();
         let world = seq.world_at(f);
@@ -106,7 +106,7 @@ fn projected_boxes_cover_instance_pixels() {
                 let (u0, u1) = (uv.iter().map(|p| p.x).fold(f64::MAX, f64::min), uv.iter().map(|p| p.x).fold(f64::MIN, f64::max));
                 let (v0, v1) = (uv.iter().map(|p| p.y).fold(f64::MAX, f64::min), uv.iter().map(|p| p.y).fold(f64::MIN, f64::max));
                 let pixels: Vec<usize> = (0..w * h).filter(|&i| inst[i] == k).collect();
-                if pixels.len() < 150 {
+                if pixels.len() < 300 {
                     continue;
                 }
                 let alone = raycast::instance_map(&world.only_vehicle(k as usize - 1), cam, &frame.world_from_ego);
@@ -123,6 +123,7 @@ fn projected_boxes_cover_instance_pixels() {
                 let inter = (u1.min(a1) - u0.max(a0)).max(0.0) * (v1.min(b1) - v0.max(b0)).max(0.0);
                 let union = (u1 - u0) * (v1 - v0) + (a1 - a0) * (b1 - b0) - inter;
                 let iou = inter / union;
+                eprintln!("{} {} frame {f}: {} px, IoU {iou:.3} box {u0:.1} {u1:.1} {v0:.1} {v1:.1} px {a0} {a1} {b0} {b1}", track.id, cam.name, pixels.len());
                 assert!(iou > 0.9, "{} in {} frame {f}: IoU {iou:.3}", track.id, cam.name);
                 checked += 1;
             }
@@ -156,7 +157,7 @@ fn lidar_ranges_match_ray_casts_and_gt_depth() {
     let incl: Vec<f64> = lidar["inclinations_rad"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let azimuths = lidar["azimuths"].as_u64().unwrap() as usize;
     let cam = s.camera("FRONT").unwrap();
-    for f in [0, 11] {
+    for f in [0, 7] {
         let frame = &s.frames[f];
         let world = seq.world_at(f);
         let points = read_lidar(&dir.join(&frame.lidar.as_ref().unwrap().path)).unwrap();
