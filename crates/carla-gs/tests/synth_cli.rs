@@ -16,7 +16,8 @@ fn s(p: &Path) -> &str {
 fn synth_writes_a_scene_and_preview() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("scene");
-    let args = ["synth", "--out", s(&dir), "--frames", "5", "--width", "96", "--height", "64", "--seed", "2", "--preview"];
+    let args =
+        ["synth", "--out", s(&dir), "--frames", "5", "--width", "96", "--height", "64", "--seed", "2", "--preview"];
     let out = carla_gs(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let scene = scene::load_scene(&dir).unwrap();

@@ -224,7 +224,13 @@ impl Bvh {
             acc.union(&Aabb { min: p, max: p })
         });
         let ext = c.max - c.min;
-        let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
         self.items[lo..hi].sort_by(|&i, &j| {
             let (a, b) = (bounds[i as usize].centre()[axis], bounds[j as usize].centre()[axis]);
             a.total_cmp(&b).then(i.cmp(&j))

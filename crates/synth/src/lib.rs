@@ -23,6 +23,7 @@ pub use error::SynthError;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use scene::format::{image_rel_path, lidar_rel_path, write_lidar, IMAGES_DIR, LIDAR_DIR};
 use scene::{
     Camera, Ego, EgoSizeSource, Frame, ImageRef, LidarRef, Scene, Source, SourceKind, StagedDir, Transform3,
@@ -138,7 +139,11 @@ impl Sequence {
             format: SCENE_FORMAT.to_string(),
             name: name.clone(),
             source: Source { kind: SourceKind::Synthetic, files: Vec::new(), id: name },
-            ego: Ego { size_lwh: scene::model::DEFAULT_EGO_SIZE_LWH, size_source: EgoSizeSource::Default, track_id: None },
+            ego: Ego {
+                size_lwh: scene::model::DEFAULT_EGO_SIZE_LWH,
+                size_source: EgoSizeSource::Default,
+                track_id: None,
+            },
             cameras: self.cameras.clone(),
             frames: (0..self.config.frames)
                 .map(|f| Frame {
@@ -215,22 +220,34 @@ pub fn synthesize(
     let mut lidar_points = Vec::with_capacity(config.frames);
     tracing::info!(frames = config.frames, cameras = config.cameras, seed = config.seed, "synthesizing");
     for f in 0..config.frames {
+        // The cameras and the LiDAR of a frame render (and the JPEGs encode) in parallel.
+        let (images, points) = rayon::join(
+            || {
+                seq.cameras
+                    .par_iter()
+                    .map(|camera| {
+                        let img = seq.render(f, camera);
+                        let jpeg = preview::encode_jpeg(&img.rgb, img.width, img.height).map_err(|message| {
+                            SynthError::Image { path: out.join(image_rel_path(f, &camera.name)), message }
+                        })?;
+                        Ok((camera.name.clone(), img, jpeg))
+                    })
+                    .collect::<Result<Vec<_>, SynthError>>()
+            },
+            || seq.lidar_sweep(f),
+        );
         let mut row = Vec::new();
-        for camera in &seq.cameras {
-            let img = seq.render(f, camera);
-            let rel = image_rel_path(f, &camera.name);
-            let jpeg = preview::encode_jpeg(&img.rgb, img.width, img.height)
-                .map_err(|message| SynthError::Image { path: out.join(&rel), message })?;
+        for (name, img, jpeg) in images? {
+            let rel = image_rel_path(f, &name);
             std::fs::write(dir.join(&rel), jpeg).map_err(|e| SynthError::io(dir.join(&rel), e))?;
-            gt::write_maps(&dir, f, &camera.name, &img)?;
+            gt::write_maps(&dir, f, &name, &img)?;
             if preview_frames.contains(&f) {
-                row.push((camera.name.clone(), img));
+                row.push((name, img));
             }
         }
         if !row.is_empty() {
             preview_rows.push(row);
         }
-        let points = seq.lidar_sweep(f);
         write_lidar(&dir.join(lidar_rel_path(f)), &points)?;
         lidar_points.push(points.len());
         tracing::debug!(frame = f, points = points.len(), "frame written");

@@ -1,6 +1,9 @@
-//! Rendering a camera image by ray casting (rayon over pixels). Colour averages four rays per
-//! pixel on a fixed rotated-grid pattern (antialiasing without randomness); the ground-truth
-//! maps use the single ray through the pixel centre, so they are exact for that ray.
+//! Rendering a camera image by ray casting (rayon over pixels), in two passes. Pass 1 casts the
+//! ray through every pixel centre: it gives the ground-truth maps (exact for that ray) and a
+//! first colour. Pass 2 antialiases adaptively: where a pixel's colour differs from a
+//! neighbour's by more than `AA_THRESHOLD` or the instance changes, four more rays on a fixed
+//! rotated grid are averaged with the centre (no randomness). Pass 2 reads only pass 1's
+//! finished output, so the result does not depend on thread scheduling.
 
 use crate::geometry::Ray;
 use crate::shade;
@@ -11,7 +14,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 use scene::{Camera, Transform3};
 
-/// Sub-pixel offsets of the colour samples (rotated 2x2 grid).
+/// Colour difference (0-1 scale, any channel) to a 4-neighbour that triggers supersampling.
+pub const AA_THRESHOLD: f64 = 0.03;
+
+/// Sub-pixel offsets of the extra colour samples (rotated 2x2 grid).
 pub const AA_OFFSETS: [(f64, f64); 4] = [(0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)];
 
 /// A rendered camera image and its ground truth, row-major from the top-left pixel.
@@ -43,7 +49,7 @@ pub fn pixel_ray(camera: &Camera, world_from_camera: &Transform3, u: f64, v: f64
 }
 
 struct Pixel {
-    rgb: [u8; 3],
+    colour: DVec3,
     depth: f32,
     normal_cam: [f32; 3],
     normal_world: [f32; 3],
@@ -68,37 +74,49 @@ pub fn render(
     let pixels: Vec<Pixel> = (0..w * h)
         .into_par_iter()
         .map(|i| {
-            let (x, y) = ((i % w) as f64, (i / w) as f64);
-            let mut colour = DVec3::ZERO;
-            for (dx, dy) in AA_OFFSETS {
-                let (ray, _) = pixel_ray(camera, &world_from_camera, x + dx, y + dy);
-                colour += shade::radiance(world, street, vehicles, &ray);
-            }
-            colour /= AA_OFFSETS.len() as f64;
-            let rgb = [colour.x, colour.y, colour.z].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
-            let (ray, cos) = pixel_ray(camera, &world_from_camera, x + 0.5, y + 0.5);
-            match world.cast(&ray, f64::INFINITY) {
+            let (ray, cos) = pixel_ray(camera, &world_from_camera, (i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+            let hit = world.cast(&ray, f64::INFINITY);
+            let colour = shade::shade_hit(world, street, vehicles, &ray, hit.as_ref());
+            match hit {
                 Some(hit) => Pixel {
-                    rgb,
+                    colour,
                     depth: (hit.t * cos) as f32,
                     normal_cam: to_f32(camera_from_world.transform_vector(hit.normal)),
                     normal_world: to_f32(hit.normal),
                     instance: hit.instance,
                 },
-                None => Pixel {
-                    rgb,
-                    depth: f32::INFINITY,
-                    normal_cam: [0.0; 3],
-                    normal_world: [0.0; 3],
-                    instance: 0,
-                },
+                None => {
+                    Pixel { colour, depth: f32::INFINITY, normal_cam: [0.0; 3], normal_world: [0.0; 3], instance: 0 }
+                }
             }
+        })
+        .collect();
+    let rgb: Vec<u8> = (0..w * h)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let (x, y) = (i % w, i / w);
+            let p = &pixels[i];
+            let neighbours =
+                [(x > 0, i.wrapping_sub(1)), (x + 1 < w, i + 1), (y > 0, i.wrapping_sub(w)), (y + 1 < h, i + w)];
+            let edge = neighbours.iter().any(|&(ok, j)| {
+                ok && (pixels[j].instance != p.instance
+                    || (pixels[j].colour - p.colour).abs().max_element() > AA_THRESHOLD)
+            });
+            let mut colour = p.colour;
+            if edge {
+                for (dx, dy) in AA_OFFSETS {
+                    let (ray, _) = pixel_ray(camera, &world_from_camera, x as f64 + dx, y as f64 + dy);
+                    colour += shade::radiance(world, street, vehicles, &ray);
+                }
+                colour /= (AA_OFFSETS.len() + 1) as f64;
+            }
+            [colour.x, colour.y, colour.z].map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
         })
         .collect();
     CameraImage {
         width: camera.width,
         height: camera.height,
-        rgb: pixels.iter().flat_map(|p| p.rgb).collect(),
+        rgb,
         depth: pixels.iter().map(|p| p.depth).collect(),
         normal_cam: pixels.iter().map(|p| p.normal_cam).collect(),
         normal_world: pixels.iter().map(|p| p.normal_world).collect(),

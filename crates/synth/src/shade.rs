@@ -85,7 +85,8 @@ fn ground_albedo(p: DVec3) -> DVec3 {
 
 fn sidewalk_albedo(p: DVec3, n: DVec3) -> DVec3 {
     if n.z.abs() < 0.5 || p.y.abs() < KERB_Y + 0.3 {
-        return grey(0.66 + 0.04 * (noise2(p.x * 5.0, p.z * 5.0 + p.y, 4) - 0.5)); // kerb stones
+        return grey(0.66 + 0.04 * (noise2(p.x * 5.0, p.z * 5.0 + p.y, 4) - 0.5));
+        // kerb stones
     }
     let (fx, fy) = (p.x.rem_euclid(1.0), p.y.rem_euclid(1.0));
     if fx < 0.03 || fy < 0.03 {
@@ -218,12 +219,17 @@ pub fn albedo(street: &Street, vehicles: &[Vehicle], hit: &Hit) -> DVec3 {
     }
 }
 
-/// The colour seen along `ray` (linear 0-1, may exceed 1 before clamping).
+/// The colour seen along `ray` (0-1 display values, may exceed 1 before clamping).
 pub fn radiance(world: &FrameWorld, street: &Street, vehicles: &[Vehicle], ray: &Ray) -> DVec3 {
-    let Some(hit) = world.cast(ray, f64::INFINITY) else {
+    shade_hit(world, street, vehicles, ray, world.cast(ray, f64::INFINITY).as_ref())
+}
+
+/// The colour of `hit`, the first hit of `ray` (`None`: sky).
+pub fn shade_hit(world: &FrameWorld, street: &Street, vehicles: &[Vehicle], ray: &Ray, hit: Option<&Hit>) -> DVec3 {
+    let Some(hit) = hit else {
         return sky(ray.dir);
     };
-    let a = albedo(street, vehicles, &hit);
+    let a = albedo(street, vehicles, hit);
     let l = sun_dir();
     let n = hit.normal;
     let mut light = AMBIENT * (0.75 + 0.25 * n.z);

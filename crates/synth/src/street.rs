@@ -87,11 +87,14 @@ pub struct Solid {
     pub material: Material,
 }
 
-/// The static world: solids in a hierarchy, the buildings' texture parameters and the x extent.
+/// The static world: the two sidewalk slabs (long boxes, tested directly: in the hierarchy they
+/// would make every node as long as the street), the other solids in a hierarchy, the
+/// buildings' texture parameters and the x extent.
 #[derive(Clone, Debug)]
 pub struct Street {
     pub x_min: f64,
     pub x_max: f64,
+    pub slabs: Vec<Solid>,
     pub solids: Vec<Solid>,
     pub buildings: Vec<Building>,
     pub bvh: Bvh,
@@ -111,12 +114,13 @@ const PALETTE: [[f32; 3]; 8] = [
 impl Street {
     /// Lays out a street covering `x` in `[x_min, x_max]`.
     pub fn generate(rng: &mut ChaCha8Rng, x_min: f64, x_max: f64) -> Self {
+        let mut slabs = Vec::new();
         let mut solids = Vec::new();
         let mut buildings = Vec::new();
         for side in [1.0, -1.0] {
             // Sidewalk slab from the kerb to well behind the buildings.
             let (y0, y1) = (side * KERB_Y, side * (FACADE_Y + 20.0));
-            solids.push(Solid {
+            slabs.push(Solid {
                 shape: Shape::Box(Aabb::new(DVec3::new(x_min, y0, -1.0), DVec3::new(x_max, y1, KERB_HEIGHT))),
                 material: Material::Sidewalk,
             });
@@ -157,10 +161,8 @@ impl Street {
                 // Arm over the road ending in a lamp head.
                 let arm = Aabb::new(DVec3::new(x - 0.06, y, 6.35), DVec3::new(x + 0.06, y - side * 1.6, 6.45));
                 solids.push(Solid { shape: Shape::Box(arm), material: Material::Metal });
-                let head = Aabb::new(
-                    DVec3::new(x - 0.25, y - side * 1.3, 6.2),
-                    DVec3::new(x + 0.25, y - side * 1.9, 6.42),
-                );
+                let head =
+                    Aabb::new(DVec3::new(x - 0.25, y - side * 1.3, 6.2), DVec3::new(x + 0.25, y - side * 1.9, 6.42));
                 solids.push(Solid { shape: Shape::Box(head), material: Material::Metal });
                 x += rng.random_range(24.0..34.0);
             }
@@ -179,7 +181,7 @@ impl Street {
             }
         }
         let bvh = Bvh::build(&solids.iter().map(|s| s.shape.bounds()).collect::<Vec<_>>());
-        Street { x_min, x_max, solids, buildings, bvh }
+        Street { x_min, x_max, slabs, solids, buildings, bvh }
     }
 
     /// Lane centre lines (ids 1-4, in driving direction), kerbs (road edges, ids 11-12) and
@@ -187,9 +189,8 @@ impl Street {
     pub fn map(&self) -> Map {
         let line = |id: i64, y: f64, forward: bool| {
             let n = ((self.x_max - self.x_min) / 10.0).ceil() as usize;
-            let mut points: Vec<DVec3> = (0..=n)
-                .map(|i| DVec3::new((self.x_min + i as f64 * 10.0).min(self.x_max), y, 0.0))
-                .collect();
+            let mut points: Vec<DVec3> =
+                (0..=n).map(|i| DVec3::new((self.x_min + i as f64 * 10.0).min(self.x_max), y, 0.0)).collect();
             if !forward {
                 points.reverse();
             }

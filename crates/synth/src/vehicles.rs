@@ -119,11 +119,41 @@ pub fn generate(rng: &mut ChaCha8Rng, ego: &EgoMotion, duration_s: f64) -> Vec<V
     // (motion, lane y, heading, x at t = 0, speed)
     let mut roles: Vec<(Motion, f64, f64, f64, f64)> = vec![
         (Motion::Lead, EGO_LANE_Y, 0.0, ego_x + rng.random_range(22.0..28.0), ego.speed * rng.random_range(0.8..0.9)),
-        (Motion::Adjacent, LANES_Y[1], 0.0, ego_x - rng.random_range(4.0..8.0), ego.speed * rng.random_range(1.2..1.35)),
-        (Motion::Adjacent, LANES_Y[1], 0.0, ego_x + rng.random_range(40.0..50.0), ego.speed * rng.random_range(0.85..1.0)),
-        (Motion::Oncoming, LANES_Y[2], std::f64::consts::PI, ego_x + rng.random_range(110.0..130.0), rng.random_range(9.0..11.0)),
-        (Motion::Oncoming, LANES_Y[3], std::f64::consts::PI, ego_x + rng.random_range(60.0..75.0), rng.random_range(7.0..9.0)),
-        (Motion::Oncoming, LANES_Y[2], std::f64::consts::PI, ego_x + rng.random_range(190.0..210.0), rng.random_range(9.0..11.0)),
+        (
+            Motion::Adjacent,
+            LANES_Y[1],
+            0.0,
+            ego_x - rng.random_range(4.0..8.0),
+            ego.speed * rng.random_range(1.2..1.35),
+        ),
+        (
+            Motion::Adjacent,
+            LANES_Y[1],
+            0.0,
+            ego_x + rng.random_range(40.0..50.0),
+            ego.speed * rng.random_range(0.85..1.0),
+        ),
+        (
+            Motion::Oncoming,
+            LANES_Y[2],
+            std::f64::consts::PI,
+            ego_x + rng.random_range(110.0..130.0),
+            rng.random_range(9.0..11.0),
+        ),
+        (
+            Motion::Oncoming,
+            LANES_Y[3],
+            std::f64::consts::PI,
+            ego_x + rng.random_range(60.0..75.0),
+            rng.random_range(7.0..9.0),
+        ),
+        (
+            Motion::Oncoming,
+            LANES_Y[2],
+            std::f64::consts::PI,
+            ego_x + rng.random_range(190.0..210.0),
+            rng.random_range(9.0..11.0),
+        ),
     ];
     // Parked cars along both kerbs, spread over the whole drive.
     let mut x = ego_x + rng.random_range(28.0..36.0);

@@ -26,7 +26,13 @@ pub enum Surface {
     Static(Material),
     /// Vehicle `index` (into the vehicle list); `local`, `local_normal` and the part's own box
     /// (`part_bounds`, the wheel's bounds for wheels) in the vehicle's box frame.
-    Vehicle { index: usize, part: Part, local: DVec3, local_normal: DVec3, part_bounds: Aabb },
+    Vehicle {
+        index: usize,
+        part: Part,
+        local: DVec3,
+        local_normal: DVec3,
+        part_bounds: Aabb,
+    },
 }
 
 /// The nearest hit of a ray: range, world point and outward world normal, instance id
@@ -146,9 +152,22 @@ impl<'a> FrameWorld<'a> {
         if let Some(street) = self.street {
             if let Some(h) = ground_hit(ray, T_MIN, t_best) {
                 t_best = h.t;
-                best = Some(Hit { t: h.t, point: ray.at(h.t), normal: h.normal, instance: 0, surface: Surface::Ground });
+                best =
+                    Some(Hit { t: h.t, point: ray.at(h.t), normal: h.normal, instance: 0, surface: Surface::Ground });
             }
             let inv = inverse_dir(ray.dir);
+            for slab in &street.slabs {
+                if let Some(h) = slab.shape.hit(ray, inv, T_MIN, t_best) {
+                    t_best = h.t;
+                    best = Some(Hit {
+                        t: h.t,
+                        point: ray.at(h.t),
+                        normal: h.normal,
+                        instance: 0,
+                        surface: Surface::Static(slab.material),
+                    });
+                }
+            }
             street.bvh.traverse(ray, t_best, |i, t_max| {
                 let solid = &street.solids[i];
                 let h = solid.shape.hit(ray, inv, T_MIN, t_max)?;

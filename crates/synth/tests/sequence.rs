@@ -79,8 +79,7 @@ fn projected_boxes_cover_instance_pixels() {
     let (dir, cfg) = fixture();
     let s = scene();
     let seq = Sequence::new(cfg).unwrap();
-    let index: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("gt/gt.json")).unwrap()).unwrap();
+    let index: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("gt/gt.json")).unwrap()).unwrap();
     let mut checked = 0;
     for f in [0, 4, 7] {
         let frame = &s.frames[f];
@@ -103,8 +102,10 @@ fn projected_boxes_cover_instance_pixels() {
                 if !uv.iter().all(|p| cam.contains_pixel(*p)) {
                     continue;
                 }
-                let (u0, u1) = (uv.iter().map(|p| p.x).fold(f64::MAX, f64::min), uv.iter().map(|p| p.x).fold(f64::MIN, f64::max));
-                let (v0, v1) = (uv.iter().map(|p| p.y).fold(f64::MAX, f64::min), uv.iter().map(|p| p.y).fold(f64::MIN, f64::max));
+                let (u0, u1) =
+                    (uv.iter().map(|p| p.x).fold(f64::MAX, f64::min), uv.iter().map(|p| p.x).fold(f64::MIN, f64::max));
+                let (v0, v1) =
+                    (uv.iter().map(|p| p.y).fold(f64::MAX, f64::min), uv.iter().map(|p| p.y).fold(f64::MIN, f64::max));
                 let pixels: Vec<usize> = (0..w * h).filter(|&i| inst[i] == k).collect();
                 if pixels.len() < 300 {
                     continue;
@@ -123,7 +124,12 @@ fn projected_boxes_cover_instance_pixels() {
                 let inter = (u1.min(a1) - u0.max(a0)).max(0.0) * (v1.min(b1) - v0.max(b0)).max(0.0);
                 let union = (u1 - u0) * (v1 - v0) + (a1 - a0) * (b1 - b0) - inter;
                 let iou = inter / union;
-                eprintln!("{} {} frame {f}: {} px, IoU {iou:.3} box {u0:.1} {u1:.1} {v0:.1} {v1:.1} px {a0} {a1} {b0} {b1}", track.id, cam.name, pixels.len());
+                eprintln!(
+                    "{} {} frame {f}: {} px, IoU {iou:.3} box {u0:.1} {u1:.1} {v0:.1} {v1:.1} px {a0} {a1} {b0} {b1}",
+                    track.id,
+                    cam.name,
+                    pixels.len()
+                );
                 assert!(iou > 0.9, "{} in {} frame {f}: IoU {iou:.3}", track.id, cam.name);
                 checked += 1;
             }
@@ -147,13 +153,14 @@ fn lidar_ranges_match_ray_casts_and_gt_depth() {
     let (dir, cfg) = fixture();
     let s = scene();
     let seq = Sequence::new(cfg).unwrap();
-    let index: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("gt/gt.json")).unwrap()).unwrap();
+    let index: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("gt/gt.json")).unwrap()).unwrap();
     let lidar = &index["lidar"];
-    let origin = DVec3::from(<[f64; 3]>::try_from(
-        lidar["origin_ego"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect::<Vec<_>>(),
-    )
-    .unwrap());
+    let origin = DVec3::from(
+        <[f64; 3]>::try_from(
+            lidar["origin_ego"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect::<Vec<_>>(),
+        )
+        .unwrap(),
+    );
     let incl: Vec<f64> = lidar["inclinations_rad"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     let azimuths = lidar["azimuths"].as_u64().unwrap() as usize;
     let cam = s.camera("FRONT").unwrap();
@@ -235,7 +242,8 @@ fn files(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
 #[test]
 fn same_seed_same_bytes_other_seed_differs() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = SynthConfig { frames: 3, cameras: 2, width: 64, height: 48, seed: 3, preview: true, ..Default::default() };
+    let cfg =
+        SynthConfig { frames: 3, cameras: 2, width: 64, height: 48, seed: 3, preview: true, ..Default::default() };
     let run = |name: &str, cfg: &SynthConfig| {
         let dir = tmp.path().join(name);
         synth::synthesize(cfg, &dir, &mut |_, _| {}).unwrap();
