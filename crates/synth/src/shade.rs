@@ -117,7 +117,7 @@ fn building_albedo(street: &Street, index: u16, p: DVec3, n: DVec3) -> DVec3 {
         // Shop front: wide windows above a plinth.
         let cx = ((p.x - x0) / (2.0 * b.window_spacing)).fract();
         return match (fz, cx) {
-            (z, _) if z < 0.15 || z > 0.85 => wall * 0.75,
+            (z, _) if !(0.15..=0.85).contains(&z) => wall * 0.75,
             (_, c) if !(0.06..=0.94).contains(&c) => frame * 0.6,
             _ => glass * 0.8,
         };

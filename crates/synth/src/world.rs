@@ -105,11 +105,11 @@ struct Pose {
 }
 
 impl Pose {
-    fn to_local(&self, v: DVec3) -> DVec3 {
+    fn to_local(self, v: DVec3) -> DVec3 {
         DVec3::new(self.cos * v.x + self.sin * v.y, -self.sin * v.x + self.cos * v.y, v.z)
     }
 
-    fn to_world(&self, v: DVec3) -> DVec3 {
+    fn to_world(self, v: DVec3) -> DVec3 {
         DVec3::new(self.cos * v.x - self.sin * v.y, self.sin * v.x + self.cos * v.y, v.z)
     }
 }
