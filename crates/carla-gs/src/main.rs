@@ -32,6 +32,8 @@ enum Command {
     RenderPly(cmd::splat::RenderArgs),
     /// Time the CPU rasterizer's forward and forward+backward passes; writes JSON.
     BenchSplat(cmd::splat::BenchArgs),
+    /// Generate a synthetic driving sequence with exact ground truth (a scene directory).
+    Synth(cmd::synth::Args),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
     Metrics(cmd::metrics::Args),
 }
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         Command::EvalCases(a) => cmd::eval_cases::run(a),
         Command::RenderPly(a) => cmd::splat::render(a),
         Command::BenchSplat(a) => cmd::splat::bench(a),
+        Command::Synth(a) => cmd::synth::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

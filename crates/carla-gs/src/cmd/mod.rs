@@ -8,3 +8,4 @@ pub mod progress;
 pub mod reason;
 pub mod simulate;
 pub mod splat;
+pub mod synth;
