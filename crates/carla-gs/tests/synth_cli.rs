@@ -26,7 +26,7 @@ fn synth_writes_a_scene_and_preview() {
     assert!(scene.tracks.len() >= 6);
     assert!(dir.join("preview.png").is_file());
     assert!(dir.join("gt/gt.json").is_file());
-    assert_eq!(std::fs::metadata(dir.join("gt/000004_FRONT.depth.f32")).unwrap().len(), 96 * 64 * 4);
+    assert_eq!(synth::gt::read_f32(&dir.join("gt/000004_FRONT.depth.f32.gz")).unwrap().len(), 96 * 64);
     // `inspect` reads it like any scene.
     assert!(carla_gs(&["inspect", s(&dir)]).status.success());
     // Again without --force: refused, the scene untouched.

@@ -66,7 +66,11 @@ impl SceneSummary {
 
 impl std::fmt::Display for SceneSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "scene    {} ({:?} from {})", self.name, self.source, self.files.join(", "))?;
+        if self.files.is_empty() {
+            writeln!(f, "scene    {} ({:?})", self.name, self.source)?;
+        } else {
+            writeln!(f, "scene    {} ({:?} from {})", self.name, self.source, self.files.join(", "))?;
+        }
         let rate = self.frame_rate_hz.map(|r| format!(", {r:.1} Hz")).unwrap_or_default();
         writeln!(f, "frames   {} over {:.2} s{rate}", self.frames, self.duration_s)?;
         writeln!(f, "cameras  {}", self.cameras.len())?;

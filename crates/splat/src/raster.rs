@@ -62,9 +62,9 @@ fn tile_forward(
         let normal = output_normal(g, nrot);
         let fv = feats.of(g.index);
         for sp in spans(h, rect, opts.smooth) {
-            let (qy, row) = (sp.y as f64 + 0.5, (sp.y - rect.y0) * TILE - rect.x0);
+            let (qy, row) = (sp.y as f64 + 0.5, (sp.y - rect.y0) * TILE);
             for x in sp.x0..sp.x1 {
-                let p = row + x;
+                let p = row + x - rect.x0;
                 if done[p] {
                     continue;
                 }

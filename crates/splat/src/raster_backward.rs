@@ -52,9 +52,9 @@ pub(crate) fn tile_backward(
         let mut a = G2::default();
         let fa = &mut facc[slot * k..(slot + 1) * k];
         for sp in spans(h, rect, opts.smooth) {
-            let (qy, row) = (sp.y as f64 + 0.5, (sp.y - rect.y0) * TILE - rect.x0);
+            let (qy, row) = (sp.y as f64 + 0.5, (sp.y - rect.y0) * TILE);
             for x in sp.x0..sp.x1 {
-                let p = row + x;
+                let p = row + x - rect.x0;
                 let xp = &mut px[p];
                 if slot as u32 >= xp.last {
                     continue;

@@ -1,8 +1,9 @@
 //! Ground-truth maps of synthetic scenes (`docs/scene-format.md`, "Ground truth"): per frame and
-//! camera, raw little-endian arrays (depth, normals in camera and world axes, instance ids) and a
-//! PNG sky mask under `gt/`, described by `gt/gt.json` (sizes, dtypes, instance -> track id, the
+//! camera, gzip-compressed raw little-endian arrays (depth, normals in camera and world axes,
+//! instance ids) and a PNG sky mask under `gt/`, described by `gt/gt.json` (sizes, dtypes, instance -> track id, the
 //! LiDAR geometry). The files go into the staged scene directory, which is renamed into place
-//! only when complete.
+//! only when complete. Raw arrays keep every value exact (f32); gzip shrinks them about 12-fold
+//! (large flat surfaces, sky) and any tool reads it (`gzip -dc`, Python's `gzip` + `numpy`).
 
 use crate::error::SynthError;
 use crate::lidar::LidarSpec;
@@ -13,7 +14,7 @@ use std::path::Path;
 pub const GT_DIR: &str = "gt";
 pub const GT_FORMAT: &str = "carla-gs-gt/1";
 
-/// Relative path of a GT map: `gt/<frame:06>_<CAMERA>.<kind>`, e.g. `depth.f32`.
+/// Relative path of a GT map: `gt/<frame:06>_<CAMERA>.<kind>`, e.g. `depth.f32.gz`.
 pub fn gt_rel_path(frame: usize, camera: &str, kind: &str) -> String {
     format!("{GT_DIR}/{frame:06}_{camera}.{kind}")
 }
@@ -25,6 +26,8 @@ pub struct GtFile {
     pub suffix: &'static str,
     /// Element type (`f32`, `u16` little-endian, or `png`).
     pub dtype: &'static str,
+    /// `gzip` (a gzip stream of the raw array) or `png`.
+    pub encoding: &'static str,
     /// Values per pixel.
     pub channels: usize,
     pub meaning: &'static str,
@@ -32,30 +35,34 @@ pub struct GtFile {
 
 pub const GT_FILES: [GtFile; 5] = [
     GtFile {
-        suffix: "depth.f32",
+        suffix: "depth.f32.gz",
         dtype: "f32",
+        encoding: "gzip",
         channels: 1,
         meaning: "depth along the camera's optical axis (camera x) of the pixel-centre ray's first hit, metres; +inf where sky",
     },
     GtFile {
-        suffix: "normal_cam.f32",
+        suffix: "normal_cam.f32.gz",
         dtype: "f32",
+        encoding: "gzip",
         channels: 3,
         meaning: "unit outward surface normal in Waymo camera axes (x forward, y left, z up); 0 0 0 where sky",
     },
     GtFile {
-        suffix: "normal_world.f32",
+        suffix: "normal_world.f32.gz",
         dtype: "f32",
+        encoding: "gzip",
         channels: 3,
         meaning: "unit outward surface normal in the world frame; 0 0 0 where sky",
     },
     GtFile {
-        suffix: "instance.u16",
+        suffix: "instance.u16.gz",
         dtype: "u16",
+        encoding: "gzip",
         channels: 1,
         meaning: "0 static world or sky, k > 0 a vehicle (see instances)",
     },
-    GtFile { suffix: "sky.png", dtype: "png", channels: 1, meaning: "8-bit grey: 255 sky, 0 surface" },
+    GtFile { suffix: "sky.png", dtype: "png", encoding: "png", channels: 1, meaning: "8-bit grey: 255 sky, 0 surface" },
 ];
 
 #[derive(Clone, Debug, Serialize)]
@@ -88,17 +95,26 @@ fn write(dir: &Path, rel: &str, bytes: &[u8]) -> Result<(), SynthError> {
     std::fs::write(&path, bytes).map_err(|e| SynthError::io(path, e))
 }
 
+/// A gzip stream of `bytes` (fast level; the header has no time stamp, so output is reproducible).
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut enc = flate2::write::GzEncoder::new(Vec::with_capacity(bytes.len() / 8), flate2::Compression::fast());
+    enc.write_all(bytes).expect("writing to memory");
+    enc.finish().expect("writing to memory")
+}
+
 fn le_f32(values: impl Iterator<Item = f32>) -> Vec<u8> {
-    values.flat_map(f32::to_le_bytes).collect()
+    gzip(&values.flat_map(f32::to_le_bytes).collect::<Vec<u8>>())
 }
 
 /// Writes the GT maps of one camera image under `dir/gt/`.
 pub fn write_maps(dir: &Path, frame: usize, camera: &str, img: &CameraImage) -> Result<(), SynthError> {
-    write(dir, &gt_rel_path(frame, camera, "depth.f32"), &le_f32(img.depth.iter().copied()))?;
-    write(dir, &gt_rel_path(frame, camera, "normal_cam.f32"), &le_f32(img.normal_cam.iter().flatten().copied()))?;
-    write(dir, &gt_rel_path(frame, camera, "normal_world.f32"), &le_f32(img.normal_world.iter().flatten().copied()))?;
+    write(dir, &gt_rel_path(frame, camera, "depth.f32.gz"), &le_f32(img.depth.iter().copied()))?;
+    let normals = |n: &[[f32; 3]]| le_f32(n.iter().flatten().copied());
+    write(dir, &gt_rel_path(frame, camera, "normal_cam.f32.gz"), &normals(&img.normal_cam))?;
+    write(dir, &gt_rel_path(frame, camera, "normal_world.f32.gz"), &normals(&img.normal_world))?;
     let inst: Vec<u8> = img.instance.iter().flat_map(|v| v.to_le_bytes()).collect();
-    write(dir, &gt_rel_path(frame, camera, "instance.u16"), &inst)?;
+    write(dir, &gt_rel_path(frame, camera, "instance.u16.gz"), &gzip(&inst))?;
     let sky: Vec<u8> = img.sky.iter().map(|&s| if s { 255 } else { 0 }).collect();
     let rel = gt_rel_path(frame, camera, "sky.png");
     let png = crate::preview::encode_png_luma(&sky, img.width, img.height)
@@ -106,14 +122,21 @@ pub fn write_maps(dir: &Path, frame: usize, camera: &str, img: &CameraImage) -> 
     write(dir, &rel, &png)
 }
 
-/// Reads a little-endian f32 GT map (`depth.f32`, `normal_*.f32`).
-pub fn read_f32(path: &Path) -> Result<Vec<f32>, SynthError> {
-    let bytes = std::fs::read(path).map_err(|e| SynthError::io(path, e))?;
-    Ok(bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+/// The decompressed bytes of a gzip GT map.
+fn read_gz(path: &Path) -> Result<Vec<u8>, SynthError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| SynthError::io(path, e))?;
+    let mut bytes = Vec::new();
+    flate2::read::GzDecoder::new(file).read_to_end(&mut bytes).map_err(|e| SynthError::io(path, e))?;
+    Ok(bytes)
 }
 
-/// Reads a little-endian u16 instance map.
+/// Reads a little-endian f32 GT map (`depth.f32.gz`, `normal_*.f32.gz`).
+pub fn read_f32(path: &Path) -> Result<Vec<f32>, SynthError> {
+    Ok(read_gz(path)?.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+}
+
+/// Reads a little-endian u16 instance map (`instance.u16.gz`).
 pub fn read_u16(path: &Path) -> Result<Vec<u16>, SynthError> {
-    let bytes = std::fs::read(path).map_err(|e| SynthError::io(path, e))?;
-    Ok(bytes.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
+    Ok(read_gz(path)?.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
 }

@@ -19,6 +19,8 @@ pub const FRAME_DT: f64 = 0.1;
 pub enum Motion {
     /// Ahead of the ego in its lane, same direction, not faster.
     Lead,
+    /// Behind the ego in its lane, same direction, slowly closing.
+    Follow,
     /// Same direction in the adjacent lane.
     Adjacent,
     /// Opposite direction.
@@ -31,6 +33,7 @@ impl Motion {
     pub fn as_str(self) -> &'static str {
         match self {
             Motion::Lead => "lead",
+            Motion::Follow => "follow",
             Motion::Adjacent => "adjacent",
             Motion::Oncoming => "oncoming",
             Motion::Parked => "parked",
@@ -119,6 +122,14 @@ pub fn generate(rng: &mut ChaCha8Rng, ego: &EgoMotion, duration_s: f64) -> Vec<V
     // (motion, lane y, heading, x at t = 0, speed)
     let mut roles: Vec<(Motion, f64, f64, f64, f64)> = vec![
         (Motion::Lead, EGO_LANE_Y, 0.0, ego_x + rng.random_range(22.0..28.0), ego.speed * rng.random_range(0.8..0.9)),
+        // 12-16 m behind (centres), closing at most 0.3 m/s: never touches the ego in 10 s.
+        (
+            Motion::Follow,
+            EGO_LANE_Y,
+            0.0,
+            ego_x - rng.random_range(12.0..16.0),
+            ego.speed * rng.random_range(1.0..1.03),
+        ),
         (
             Motion::Adjacent,
             LANES_Y[1],

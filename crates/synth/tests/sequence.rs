@@ -46,7 +46,7 @@ fn loads_as_a_scene_with_every_kind_of_motion() {
     // Classify each track from its states alone, relative to the ego.
     let ego0 = s.frames[0].world_from_ego.translation();
     let ego_speed = s.ego_distance_m() / s.duration_s();
-    let (mut lead, mut adjacent, mut oncoming, mut parked) = (0, 0, 0, 0);
+    let (mut lead, mut follow, mut adjacent, mut oncoming, mut parked) = (0, 0, 0, 0, 0);
     for t in &s.tracks {
         assert_eq!(t.class, scene::ObjectClass::Vehicle);
         let st = &t.states[0];
@@ -58,11 +58,14 @@ fn loads_as_a_scene_with_every_kind_of_motion() {
             oncoming += 1;
         } else if dy.abs() < 0.5 && st.center.x > ego0.x && v.x <= ego_speed {
             lead += 1;
+        } else if dy.abs() < 0.5 && st.center.x < ego0.x && v.x >= ego_speed {
+            follow += 1;
         } else if (dy.abs() - 3.5).abs() < 0.5 {
             adjacent += 1;
         }
     }
-    assert!(lead >= 1 && adjacent >= 1 && oncoming >= 1 && parked >= 1, "{lead} {adjacent} {oncoming} {parked}");
+    let counts = [lead, follow, adjacent, oncoming, parked];
+    assert!(counts.iter().all(|c| *c >= 1), "lead, follow, adjacent, oncoming, parked: {counts:?}");
 }
 
 /// The tracked 3D box, projected into a camera, against the vehicle's instance pixels.
@@ -87,7 +90,7 @@ fn projected_boxes_cover_instance_pixels() {
         let world = seq.world_at(f);
         for cam in &s.cameras {
             let (w, h) = (cam.width as usize, cam.height as usize);
-            let inst = gt::read_u16(&dir.join(gt::gt_rel_path(f, &cam.name, "instance.u16"))).unwrap();
+            let inst = gt::read_u16(&dir.join(gt::gt_rel_path(f, &cam.name, "instance.u16.gz"))).unwrap();
             assert_eq!(inst.len(), w * h);
             for entry in index["instances"].as_array().unwrap() {
                 let k = entry["instance"].as_u64().unwrap() as u16;
@@ -209,7 +212,7 @@ fn lidar_ranges_match_ray_casts_and_gt_depth() {
         assert!(worst < 1e-3, "frame {f}: LiDAR range off by {worst} m");
         assert!(in_view > 1000 && seen * 10 > in_view * 7, "frame {f}: {seen} of {in_view} seen by FRONT");
         // 3. GT depth file vs pixel-centre rays.
-        let depth = gt::read_f32(&dir.join(gt::gt_rel_path(f, "FRONT", "depth.f32"))).unwrap();
+        let depth = gt::read_f32(&dir.join(gt::gt_rel_path(f, "FRONT", "depth.f32.gz"))).unwrap();
         let world_from_camera = frame.world_from_ego * cam.ego_from_camera;
         let w = cam.width as usize;
         for (i, &d) in depth.iter().enumerate().step_by(7) {
