@@ -6,10 +6,9 @@
 //! `J = [[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]]` with `x/z` and `y/z` clamped to 1.3x the
 //! field of view on each side of the principal point (as gsplat does, for stability off-screen), `Sigma2 = J W Sigma3 W^T J^T`.
 //! Low-pass: `Sigma2 += 0.3 I`; in antialiased mode the opacity is multiplied by
-//! `sqrt(det Sigma2_before / det Sigma2_after)`. The screen radius is where alpha would fall
-//! below 1/255: `r = sqrt(2 ln(255 o) lambda_max)`, so no pixel beyond it can contribute and the
-//! tiled renderer equals a per-pixel brute-force one; the per-axis `extent` bounds the same
-//! ellipse more tightly for binning.
+//! `sqrt(det Sigma2_before / det Sigma2_after)`. The screen `extent` is the bounding box of the
+//! ellipse where alpha would fall below 1/255 (`d^T Sigma2^-1 d = 2 ln(255 o)`), so no pixel
+//! beyond it can contribute and the tiled renderer equals a per-pixel brute-force one.
 
 use crate::camera::Camera;
 use crate::gaussians::{sigmoid, Gaussians};
@@ -30,9 +29,8 @@ pub struct Projected {
     pub depth: f64,
     /// Opacity after activation (and the antialiasing factor).
     pub opacity: f64,
-    pub radius: f64,
-    /// Half-widths (x, y) of the ellipse's bounding box where alpha >= 1/255:
-    /// `sqrt(2 ln(255 o) Sigma2_xx)`, `sqrt(2 ln(255 o) Sigma2_yy)` (at most `radius`).
+    /// Half-widths (x, y) of the bounding box of the ellipse where alpha >= 1/255:
+    /// `sqrt(2 ln(255 o) Sigma2_xx)`, `sqrt(2 ln(255 o) Sigma2_yy)`.
     pub extent: [f64; 2],
     /// RGB from the SH at this view direction (before clamping at 0).
     pub color: [f64; 3],
@@ -142,10 +140,7 @@ pub fn project_full(
         return None;
     }
     let conic = [cov[1][1] / det, -cov[0][1] / det, cov[0][0] / det];
-    let mid = 0.5 * (cov[0][0] + cov[1][1]);
-    let lambda = mid + (mid * mid - det).max(0.0).sqrt();
     let level = 2.0 * (255.0 * opacity).ln().max(0.0);
-    let radius = (level * lambda).sqrt();
     let extent = [(level * cov[0][0]).sqrt(), (level * cov[1][1]).sqrt()];
     let mean = [cam.fx * p[0] / z + cam.cx, cam.fy * p[1] / z + cam.cy];
     // Colour from SH at the view direction (world frame, camera centre to mean).
@@ -164,7 +159,6 @@ pub fn project_full(
         n = n.map(|v| -v);
     }
     let ok = mean.iter().chain(&conic).chain(&color).chain(&n).all(|v| v.is_finite())
-        && radius.is_finite()
         && extent.iter().all(|v| v.is_finite());
     let frame = Frame {
         p,
@@ -183,5 +177,5 @@ pub fn project_full(
         kmin,
         flipped,
     };
-    ok.then_some((Projected { index: i, mean, conic, depth: z, opacity, radius, extent, color, normal: n }, frame))
+    ok.then_some((Projected { index: i, mean, conic, depth: z, opacity, extent, color, normal: n }, frame))
 }

@@ -149,7 +149,6 @@ pub fn project_sorted_into(
     scratch: &mut Vec<Option<Projected>>,
 ) {
     scratch.resize(g.len(), None);
-    scratch.truncate(g.len());
     scratch
         .par_iter_mut()
         .enumerate()
@@ -163,7 +162,8 @@ pub fn project_sorted_into(
 pub fn render_brute_force(g: &Gaussians, cam: &Camera, feats: &Features, opts: &RenderOptions) -> Image {
     let proj = project_sorted(g, cam, opts);
     let hot: Vec<Hot> = proj.iter().map(Hot::of).collect();
-    let normals: Vec<[f64; 3]> = proj.iter().map(|p| output_normal(p, &normal_rotation(cam, opts))).collect();
+    let nrot = normal_rotation(cam, opts);
+    let normals: Vec<[f64; 3]> = proj.iter().map(|p| output_normal(p, &nrot)).collect();
     let mut img = Image::blank(cam, feats.channels);
     let mut f = vec![0.0; feats.channels];
     for y in 0..img.height {

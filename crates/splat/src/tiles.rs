@@ -241,7 +241,6 @@ mod tests {
                 conic: [syy / det, -sxy / det, sxx / det],
                 depth: 1.0,
                 opacity,
-                radius: 0.0,
                 extent: [(level * sxx).sqrt(), (level * syy).sqrt()],
                 color: [0.0; 3],
                 normal: [0.0; 3],
