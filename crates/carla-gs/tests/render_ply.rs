@@ -10,17 +10,7 @@ fn carla_gs(args: &[&str]) -> std::process::Output {
 #[test]
 fn renders_a_ply_to_png() {
     let dir = tempfile::tempdir().unwrap();
-    let cam = splat::Camera {
-        width: 64,
-        height: 48,
-        fx: 50.0,
-        fy: 50.0,
-        cx: 32.0,
-        cy: 24.0,
-        camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-        near: 0.01,
-        far: 100.0,
-    };
+    let cam = splat::Camera { far: 100.0, ..splat::Camera::at_origin(64, 48, 50.0) };
     let g = splat::random::random_gaussians(2000, &cam, 1, 3);
     let ply = dir.path().join("m.ply");
     splat::ply::write_ply(&ply, &g).unwrap();

@@ -31,6 +31,22 @@ fn default_far() -> f64 {
 }
 
 impl Camera {
+    /// A camera at the world origin looking down +z (world = camera axes), square pixels of
+    /// focal length `focal` (pixels), principal point at the image centre, default near/far.
+    pub fn at_origin(width: u32, height: u32, focal: f64) -> Camera {
+        Camera {
+            width,
+            height,
+            fx: focal,
+            fy: focal,
+            cx: width as f64 / 2.0,
+            cy: height as f64 / 2.0,
+            camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+            near: default_near(),
+            far: default_far(),
+        }
+    }
+
     /// World point to camera axes.
     pub fn to_camera(&self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.camera_from_world;

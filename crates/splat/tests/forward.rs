@@ -7,17 +7,7 @@ use splat::{Camera, Gaussians};
 use splat::random::XorShift as Rng;
 
 fn camera(w: u32, h: u32) -> Camera {
-    Camera {
-        width: w,
-        height: h,
-        fx: 0.9 * w as f64,
-        fy: 0.9 * w as f64,
-        cx: w as f64 / 2.0,
-        cy: h as f64 / 2.0,
-        camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-        near: 0.01,
-        far: 100.0,
-    }
+    Camera { far: 100.0, ..Camera::at_origin(w, h, 0.9 * w as f64) }
 }
 
 fn scene(n: usize, degree: usize, seed: u64) -> Gaussians {

@@ -75,17 +75,7 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
             .with_context(|| format!("--cases: `{case}` is not NxWxH"))?;
         anyhow::ensure!(v.len() == 3, "--cases: `{case}` is not NxWxH");
         let (n, w, h) = (v[0], v[1] as u32, v[2] as u32);
-        let cam = splat::Camera {
-            width: w,
-            height: h,
-            fx: 0.8 * w as f64,
-            fy: 0.8 * w as f64,
-            cx: w as f64 / 2.0,
-            cy: h as f64 / 2.0,
-            camera_from_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
-            near: 0.01,
-            far: 1e4,
-        };
+        let cam = splat::Camera::at_origin(w, h, 0.8 * w as f64);
         let g = splat::random::random_gaussians(n, &cam, 3, 7);
         let opts = RenderOptions::default();
         let (mut fwd, mut both) = (Vec::new(), Vec::new());
