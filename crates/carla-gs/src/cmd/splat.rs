@@ -105,14 +105,10 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
             b,
             1.0 / b
         );
-        results.push(serde_json::json!({"gaussians": n, "width": w, "height": h, "iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon_threads()}));
+        results.push(serde_json::json!({"gaussians": n, "width": w, "height": h, "iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon::current_num_threads()}));
     }
     let json = serde_json::json!({"benchmark": "splat CPU rasterizer", "results": results});
     scene::write_file_atomic(&a.out, &serde_json::to_vec_pretty(&json)?)?;
     println!("wrote {}", a.out.display());
     Ok(())
-}
-
-fn rayon_threads() -> usize {
-    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
 }
