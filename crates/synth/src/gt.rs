@@ -107,19 +107,24 @@ fn le_f32(values: impl Iterator<Item = f32>) -> Vec<u8> {
     gzip(&values.flat_map(f32::to_le_bytes).collect::<Vec<u8>>())
 }
 
-/// Writes the GT maps of one camera image under `dir/gt/`.
-pub fn write_maps(dir: &Path, frame: usize, camera: &str, img: &CameraImage) -> Result<(), SynthError> {
-    write(dir, &gt_rel_path(frame, camera, "depth.f32.gz"), &le_f32(img.depth.iter().copied()))?;
+/// The GT files of one camera image: `(path relative to the scene directory, bytes)`. Encoding
+/// (gzip, PNG) is the costly part, so callers run it in parallel and only write serially.
+pub fn encode_maps(frame: usize, camera: &str, img: &CameraImage) -> Result<Vec<(String, Vec<u8>)>, String> {
     let normals = |n: &[[f32; 3]]| le_f32(n.iter().flatten().copied());
-    write(dir, &gt_rel_path(frame, camera, "normal_cam.f32.gz"), &normals(&img.normal_cam))?;
-    write(dir, &gt_rel_path(frame, camera, "normal_world.f32.gz"), &normals(&img.normal_world))?;
     let inst: Vec<u8> = img.instance.iter().flat_map(|v| v.to_le_bytes()).collect();
-    write(dir, &gt_rel_path(frame, camera, "instance.u16.gz"), &gzip(&inst))?;
     let sky: Vec<u8> = img.sky.iter().map(|&s| if s { 255 } else { 0 }).collect();
-    let rel = gt_rel_path(frame, camera, "sky.png");
-    let png = crate::preview::encode_png_luma(&sky, img.width, img.height)
-        .map_err(|message| SynthError::Image { path: dir.join(&rel), message })?;
-    write(dir, &rel, &png)
+    Ok(vec![
+        (gt_rel_path(frame, camera, "depth.f32.gz"), le_f32(img.depth.iter().copied())),
+        (gt_rel_path(frame, camera, "normal_cam.f32.gz"), normals(&img.normal_cam)),
+        (gt_rel_path(frame, camera, "normal_world.f32.gz"), normals(&img.normal_world)),
+        (gt_rel_path(frame, camera, "instance.u16.gz"), gzip(&inst)),
+        (gt_rel_path(frame, camera, "sky.png"), crate::preview::encode_png_luma(&sky, img.width, img.height)?),
+    ])
+}
+
+/// Writes files from [`encode_maps`] under `dir`.
+pub fn write_maps(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<(), SynthError> {
+    files.iter().try_for_each(|(rel, bytes)| write(dir, rel, bytes))
 }
 
 /// The decompressed bytes of a gzip GT map.

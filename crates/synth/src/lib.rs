@@ -220,7 +220,7 @@ pub fn synthesize(
     let mut lidar_points = Vec::with_capacity(config.frames);
     tracing::info!(frames = config.frames, cameras = config.cameras, seed = config.seed, "synthesizing");
     for f in 0..config.frames {
-        // The cameras and the LiDAR of a frame render (and the JPEGs encode) in parallel.
+        // The cameras and the LiDAR of a frame render (and the JPEGs and GT maps encode) in parallel.
         let (images, points) = rayon::join(
             || {
                 seq.cameras
@@ -230,17 +230,21 @@ pub fn synthesize(
                         let jpeg = preview::encode_jpeg(&img.rgb, img.width, img.height).map_err(|message| {
                             SynthError::Image { path: out.join(image_rel_path(f, &camera.name)), message }
                         })?;
-                        Ok((camera.name.clone(), img, jpeg))
+                        let maps = gt::encode_maps(f, &camera.name, &img).map_err(|message| SynthError::Image {
+                            path: out.join(gt::gt_rel_path(f, &camera.name, "sky.png")),
+                            message,
+                        })?;
+                        Ok((camera.name.clone(), img, jpeg, maps))
                     })
                     .collect::<Result<Vec<_>, SynthError>>()
             },
             || seq.lidar_sweep(f),
         );
         let mut row = Vec::new();
-        for (name, img, jpeg) in images? {
+        for (name, img, jpeg, maps) in images? {
             let rel = image_rel_path(f, &name);
             std::fs::write(dir.join(&rel), jpeg).map_err(|e| SynthError::io(dir.join(&rel), e))?;
-            gt::write_maps(&dir, f, &name, &img)?;
+            gt::write_maps(&dir, &maps)?;
             if preview_frames.contains(&f) {
                 row.push((name, img));
             }
