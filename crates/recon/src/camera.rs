@@ -1,0 +1,79 @@
+//! From a scene camera at a frame to the rasterizer's camera: `camera_from_world` in OpenCV axes
+//! is `cv_from_ego * ego_from_world` (`scene::Camera::cv_from_ego` holds the axis change), and the
+//! intrinsics scale with the image (`u' = s u` for the top-left-corner pixel origin). Also the
+//! world ray through a pixel centre, which the sky looks up.
+
+use crate::error::ReconError;
+use scene::Transform3;
+
+/// The image size at `scale` (at least one pixel).
+pub fn scaled_size(width: u32, height: u32, scale: f64) -> (u32, u32) {
+    (((width as f64 * scale).round() as u32).max(1), ((height as f64 * scale).round() as u32).max(1))
+}
+
+/// The rasterizer camera of `cam` on an ego at `world_from_ego`, at `scale` of the image size.
+/// Refuses a distorted camera (undistort at ingest: the rasterizer is pinhole).
+pub fn splat_camera(cam: &scene::Camera, world_from_ego: &Transform3, scale: f64) -> Result<splat::Camera, ReconError> {
+    if !cam.distortion.is_zero() {
+        return Err(ReconError::Camera {
+            camera: cam.name.clone(),
+            detail: "has lens distortion; the rasterizer is pinhole (undistort the images at ingest)".into(),
+        });
+    }
+    let (w, h) = scaled_size(cam.width, cam.height, scale);
+    let (sx, sy) = (w as f64 / cam.width as f64, h as f64 / cam.height as f64);
+    let cv_from_world = cam.cv_from_ego() * world_from_ego.inverse();
+    let k = cam.intrinsics;
+    Ok(splat::Camera {
+        width: w,
+        height: h,
+        fx: k.fx * sx,
+        fy: k.fy * sy,
+        cx: k.cx * sx,
+        cy: k.cy * sy,
+        camera_from_world: cv_from_world.to_row_major(),
+        near: 0.05,
+        far: 1e4,
+    })
+}
+
+/// The unit world direction of the ray through pixel centre `(x + 0.5, y + 0.5)`.
+#[inline]
+pub fn pixel_ray(cam: &splat::Camera, x: usize, y: usize) -> [f64; 3] {
+    let d = [(x as f64 + 0.5 - cam.cx) / cam.fx, (y as f64 + 0.5 - cam.cy) / cam.fy, 1.0];
+    let m = &cam.camera_from_world;
+    // world = R^T cam
+    let w: [f64; 3] = std::array::from_fn(|c| (0..3).map(|r| m[r][c] * d[r]).sum());
+    let n = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    w.map(|v| v / n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    #[test]
+    fn a_world_point_lands_where_the_scene_camera_projects_it() {
+        let cam = scene::Camera {
+            name: "FRONT".into(),
+            width: 640,
+            height: 480,
+            intrinsics: scene::Intrinsics { fx: 500.0, fy: 510.0, cx: 320.0, cy: 240.0 },
+            distortion: Default::default(),
+            ego_from_camera: Transform3::from_yaw_translation(0.1, DVec3::new(1.5, 0.2, 1.8)),
+            rolling_shutter: Default::default(),
+        };
+        let world_from_ego = Transform3::from_yaw_translation(1.2, DVec3::new(100.0, -40.0, 3.0));
+        let p_world = world_from_ego.transform_point(DVec3::new(20.0, 3.0, 1.0));
+        let uv = cam.project_ego(world_from_ego.inverse().transform_point(p_world)).unwrap();
+        let sc = splat_camera(&cam, &world_from_ego, 0.5).unwrap();
+        let pc = sc.to_camera(p_world.into());
+        let (u, v) = (sc.fx * pc[0] / pc[2] + sc.cx, sc.fy * pc[1] / pc[2] + sc.cy);
+        assert!((u - uv.x * 0.5).abs() < 1e-9 && (v - uv.y * 0.5).abs() < 1e-9);
+        // The pixel ray through that point points at it.
+        let ray = pixel_ray(&sc, u.floor() as usize, v.floor() as usize);
+        let to = (p_world - DVec3::from(sc.center())).normalize();
+        assert!(ray[0] * to.x + ray[1] * to.y + ray[2] * to.z > 0.9999);
+    }
+}

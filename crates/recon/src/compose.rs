@@ -1,0 +1,179 @@
+//! Composing the scene at one instant: the background (already in the world) and every actor
+//! alive at time `t`, moved by its `world_from_box` (yaw + translation), concatenated into one
+//! world-frame `Gaussians` the rasterizer draws; and the way back, from world-frame gradients to
+//! each model's own parameters.
+//!
+//! Per actor Gaussian: `mean_w = R mean_b + t`, `q_w = q_yaw * q_b` (so the normal axis turns
+//! with it), scales unchanged, SH coefficients rotated (`sh_rotate`). Gradients: `R^T` for
+//! means, the transpose of the left-multiplication matrix of `q_yaw` for quaternions, `M_l` for
+//! SH. Only the first `sh_coeffs(active_degree)` coefficients are drawn (the SH schedule).
+
+use crate::model::{clear, SceneModel};
+use crate::pose::{box_pose_at, BoxPose};
+use crate::sh_rotate::ShRotation;
+use scene::Scene;
+use splat::backward::Gradients;
+use splat::sh::sh_coeffs;
+use splat::Gaussians;
+
+/// Which model a run of world Gaussians came from.
+#[derive(Clone, Debug)]
+pub struct Part {
+    /// `None` for the background, `Some(i)` for actor `i`.
+    pub actor: Option<usize>,
+    pub start: usize,
+    pub len: usize,
+    pose: Option<(BoxPose, ShRotation)>,
+}
+
+/// A composed scene (reused between iterations: its memory is kept).
+#[derive(Clone, Debug)]
+pub struct Composed {
+    pub world: Gaussians,
+    pub parts: Vec<Part>,
+}
+
+impl Default for Composed {
+    fn default() -> Self {
+        Composed { world: crate::model::empty(0), parts: vec![] }
+    }
+}
+
+/// Actor `i`'s pose at `t`, or `None` when its track has no valid state around `t`.
+pub fn actor_pose(model: &SceneModel, scene: &Scene, i: usize, t: f64) -> Option<BoxPose> {
+    scene.track(&model.actors[i].track_id).and_then(|tr| box_pose_at(scene, tr, t))
+}
+
+fn yaw_rotation(h: f64) -> [[f64; 3]; 3] {
+    [[h.cos(), -h.sin(), 0.0], [h.sin(), h.cos(), 0.0], [0.0, 0.0, 1.0]]
+}
+
+/// Which models to draw.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layers {
+    All,
+    /// Actors only (for actor masks).
+    ActorsOnly,
+    /// The background only.
+    BackgroundOnly,
+}
+
+/// Composes the scene at time `t`. `poses` overrides actor poses (by actor index; an override of
+/// `Some(pose)` draws the actor there even outside its logged lifespan).
+pub fn compose_into(
+    model: &SceneModel,
+    scene: &Scene,
+    t: f64,
+    active_degree: usize,
+    layers: Layers,
+    poses: &dyn Fn(usize) -> Option<Option<BoxPose>>,
+    out: &mut Composed,
+) {
+    let k = sh_coeffs(active_degree) * 3;
+    let w = &mut out.world;
+    w.sh_degree = active_degree;
+    w.means.clear();
+    w.log_scales.clear();
+    w.rotations.clear();
+    w.opacity_logits.clear();
+    w.sh.clear();
+    out.parts.clear();
+    if layers != Layers::ActorsOnly {
+        let bg = &model.background;
+        w.means.extend_from_slice(&bg.means);
+        w.log_scales.extend_from_slice(&bg.log_scales);
+        w.rotations.extend_from_slice(&bg.rotations);
+        w.opacity_logits.extend_from_slice(&bg.opacity_logits);
+        for i in 0..bg.len() {
+            w.sh.extend_from_slice(&bg.sh_of(i)[..k]);
+        }
+        out.parts.push(Part { actor: None, start: 0, len: bg.len(), pose: None });
+    }
+    if layers == Layers::BackgroundOnly {
+        return;
+    }
+    for (ai, actor) in model.actors.iter().enumerate() {
+        let pose = poses(ai).unwrap_or_else(|| actor_pose(model, scene, ai, t));
+        let Some(pose) = pose else { continue };
+        let g = &actor.gaussians;
+        let r = yaw_rotation(pose.heading);
+        let rot = ShRotation::new(g.sh_degree, r);
+        let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
+        let start = w.len();
+        let mut buf = vec![0.0; k];
+        for i in 0..g.len() {
+            let m = g.means[i];
+            w.means.push(std::array::from_fn(|a| (0..3).map(|b| r[a][b] * m[b]).sum::<f64>() + pose.center[a]));
+            w.log_scales.push(g.log_scales[i]);
+            let [qw, qx, qy, qz] = g.rotations[i];
+            w.rotations.push([c * qw - s * qz, c * qx - s * qy, c * qy + s * qx, c * qz + s * qw]);
+            w.opacity_logits.push(g.opacity_logits[i]);
+            rot.to_world(g.sh_of(i), &mut buf, active_degree);
+            w.sh.extend_from_slice(&buf);
+        }
+        out.parts.push(Part { actor: Some(ai), start, len: g.len(), pose: Some((pose, rot)) });
+    }
+}
+
+/// Adds the world-frame gradients `gw` of a composed scene to per-model gradients `grads`
+/// (background first, then actors: the order of `SceneModel::sets`), each shaped like its model.
+pub fn scatter_gradients(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians]) {
+    let active = composed.world.sh_degree;
+    let k = sh_coeffs(active) * 3;
+    for part in &composed.parts {
+        let dst = &mut grads[part.actor.map_or(0, |a| a + 1)];
+        let kd = dst.coeffs() * 3;
+        for j in 0..part.len {
+            let (i, wi) = (j, part.start + j);
+            let gsh = &gw.sh[wi * k..(wi + 1) * k];
+            let dsh = &mut dst.sh[i * kd..(i + 1) * kd];
+            for a in 0..3 {
+                dst.log_scales[i][a] += gw.log_scales[wi][a];
+            }
+            dst.opacity_logits[i] += gw.opacity_logits[wi];
+            match &part.pose {
+                None => {
+                    for a in 0..3 {
+                        dst.means[i][a] += gw.means[wi][a];
+                    }
+                    for a in 0..4 {
+                        dst.rotations[i][a] += gw.rotations[wi][a];
+                    }
+                    for (d, g) in dsh.iter_mut().zip(gsh) {
+                        *d += g;
+                    }
+                }
+                Some((pose, rot)) => {
+                    let r = yaw_rotation(pose.heading);
+                    let gm = gw.means[wi];
+                    for a in 0..3 {
+                        dst.means[i][a] += (0..3).map(|b| r[b][a] * gm[b]).sum::<f64>();
+                    }
+                    let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
+                    let [gw_, gx, gy, gz] = gw.rotations[wi];
+                    let q = &mut dst.rotations[i];
+                    q[0] += c * gw_ + s * gz;
+                    q[1] += c * gx + s * gy;
+                    q[2] += -s * gx + c * gy;
+                    q[3] += -s * gw_ + c * gz;
+                    rot.grad_to_local(gsh, dsh, active);
+                }
+            }
+        }
+    }
+}
+
+/// Zeroes per-model gradient buffers, resizing them to the model's current shape.
+pub fn reset_gradients(model: &SceneModel, grads: &mut Vec<Gaussians>) {
+    grads.resize_with(model.actors.len() + 1, || crate::model::empty(0));
+    for (g, m) in grads.iter_mut().zip(model.sets()) {
+        if g.len() != m.len() || g.sh_degree != m.sh_degree {
+            *g = crate::model::zeros_like(m);
+        } else {
+            clear(g);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

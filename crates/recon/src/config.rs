@@ -1,0 +1,194 @@
+//! Training settings: one documented TOML file (`docs/recon.md` lists every key), every key
+//! optional with the defaults below, unknown keys refused with their path. The defaults follow
+//! 3DGS / Street Gaussians (learning rates, densification rules, SH schedule) with iteration counts
+//! shortened for the CPU; the geometry weights are the paper's 0.1 each.
+
+use crate::loss::LossWeights;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    pub seed: u64,
+    pub iterations: usize,
+    /// Fraction of the image size to train at (intrinsics scale with it).
+    pub scale: f64,
+    /// Every `held_out_every`-th frame (frame index % n == 0) of every camera is held out.
+    pub held_out_every: usize,
+    /// Final SH degree; the active degree grows by one every `sh_degree_interval` iterations.
+    pub sh_degree: usize,
+    pub sh_degree_interval: usize,
+    /// Save a checkpoint every this many iterations (0: only at the end).
+    pub checkpoint_interval: usize,
+    pub lr: LearningRates,
+    pub loss: LossWeights,
+    pub densify: DensifyConfig,
+    pub init: InitConfig,
+    /// Sky cube-map face resolution (texels).
+    pub sky_res: usize,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LearningRates {
+    /// Mean learning rate at the start and the end (times the scene extent), exponential decay.
+    pub means: f64,
+    pub means_final: f64,
+    pub log_scales: f64,
+    pub rotations: f64,
+    pub opacity: f64,
+    pub sh_dc: f64,
+    pub sh_rest: f64,
+    pub sky: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DensifyConfig {
+    pub from: usize,
+    pub until: usize,
+    pub interval: usize,
+    /// Average screen-space (NDC) gradient above which a Gaussian is cloned or split.
+    pub grad_threshold: f64,
+    /// Split (rather than clone) when the largest scale exceeds this fraction of the scene extent.
+    pub percent_dense: f64,
+    pub opacity_reset_interval: usize,
+    pub prune_opacity: f64,
+    /// After the first opacity reset: prune Gaussians wider than this on screen (pixels)...
+    pub max_screen_size: f64,
+    /// ...or larger than this fraction of the scene extent in the world.
+    pub max_world_fraction: f64,
+    /// No clone or split beyond this many Gaussians in all (the CPU budget).
+    pub max_gaussians: usize,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InitConfig {
+    /// Background points: voxel size (m) for LiDAR / depth points, and a cap.
+    pub voxel_m: f64,
+    pub max_points: usize,
+    /// Random points when the scene has neither LiDAR nor depth.
+    pub random_points: usize,
+    /// Points per actor (from LiDAR inside the box, topped up with random points in the box).
+    pub actor_points: usize,
+    pub opacity: f64,
+    /// Stride (pixels at training scale) when back-projecting depth priors.
+    pub depth_stride: usize,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            seed: 0,
+            iterations: 3000,
+            scale: 0.5,
+            held_out_every: 8,
+            sh_degree: 3,
+            sh_degree_interval: 1000,
+            checkpoint_interval: 500,
+            lr: LearningRates::default(),
+            loss: LossWeights::default(),
+            densify: DensifyConfig::default(),
+            init: InitConfig::default(),
+            sky_res: 32,
+        }
+    }
+}
+
+impl Default for LearningRates {
+    fn default() -> Self {
+        LearningRates {
+            means: 1.6e-4,
+            means_final: 1.6e-6,
+            log_scales: 5e-3,
+            rotations: 1e-3,
+            opacity: 2.5e-2,
+            sh_dc: 2.5e-3,
+            sh_rest: 2.5e-3 / 20.0,
+            sky: 1e-2,
+        }
+    }
+}
+
+impl Default for DensifyConfig {
+    fn default() -> Self {
+        DensifyConfig {
+            from: 300,
+            until: 2000,
+            interval: 100,
+            grad_threshold: 2e-4,
+            percent_dense: 0.01,
+            opacity_reset_interval: 1000,
+            prune_opacity: 0.005,
+            max_screen_size: 60.0,
+            max_world_fraction: 0.1,
+            max_gaussians: 200_000,
+        }
+    }
+}
+
+impl Default for InitConfig {
+    fn default() -> Self {
+        InitConfig {
+            voxel_m: 0.15,
+            max_points: 60_000,
+            random_points: 30_000,
+            actor_points: 3000,
+            opacity: 0.1,
+            depth_stride: 4,
+        }
+    }
+}
+
+impl TrainConfig {
+    /// Parses a TOML config; the error names the key.
+    pub fn from_toml(text: &str) -> Result<TrainConfig, String> {
+        let cfg: TrainConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.scale > 0.0 && self.scale <= 1.0) {
+            return Err(format!("scale must be in (0, 1], got {}", self.scale));
+        }
+        if self.sh_degree > 3 {
+            return Err(format!("sh_degree must be 0..=3, got {}", self.sh_degree));
+        }
+        if self.held_out_every == 1 {
+            return Err("held_out_every = 1 would hold out every view (0 disables the split)".into());
+        }
+        if self.densify.interval == 0 || self.sh_degree_interval == 0 {
+            return Err("densify.interval and sh_degree_interval must be positive".into());
+        }
+        if self.sky_res == 0 {
+            return Err("sky_res must be positive".into());
+        }
+        Ok(())
+    }
+
+    /// The SH degree drawn at iteration `it` (0-based).
+    pub fn active_degree(&self, it: usize) -> usize {
+        (it / self.sh_degree_interval).min(self.sh_degree)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_round_trip_and_unknown_keys() {
+        let cfg = TrainConfig::default();
+        let text = toml::to_string(&cfg).unwrap();
+        assert_eq!(TrainConfig::from_toml(&text).unwrap(), cfg);
+        let partial = TrainConfig::from_toml("iterations = 10\n[loss]\nnormal = 0.0\n").unwrap();
+        assert_eq!(partial.iterations, 10);
+        assert_eq!(partial.loss.normal, 0.0);
+        assert_eq!(partial.loss.flat, 0.1);
+        let err = TrainConfig::from_toml("[loss]\nnormals = 1\n").unwrap_err();
+        assert!(err.contains("normals"), "{err}");
+        assert!(TrainConfig::from_toml("scale = 2.0").unwrap_err().contains("scale"));
+    }
+}

@@ -1,0 +1,98 @@
+//! The training views of a scene: one per (frame, camera) image, with its rasterizer camera at the
+//! training scale, its time on the log clock, its target image and, where the scene has priors
+//! (`carla-gs priors`), the depth, normals and supervision mask at the same scale. Grayscale images
+//! (KITTI) are replicated into three equal channels, so the model and the metrics stay RGB.
+//! The split: frames whose index is a multiple of `held_out_every` are held out, for every camera.
+
+use crate::camera::splat_camera;
+use crate::error::ReconError;
+use crate::loss::Targets;
+use image::imageops::FilterType;
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+use scene::Scene;
+use std::path::Path;
+
+#[derive(Clone, Debug)]
+pub struct View {
+    pub frame: usize,
+    pub camera: String,
+    /// Log time (s) of the frame.
+    pub time: f64,
+    pub cam: splat::Camera,
+    pub targets: Targets,
+    pub held_out: bool,
+}
+
+impl View {
+    pub fn width(&self) -> usize {
+        self.cam.width as usize
+    }
+
+    pub fn height(&self) -> usize {
+        self.cam.height as usize
+    }
+}
+
+/// Whether frame `frame` is held out under the every-n-th split (`n = 0`: none).
+pub fn is_held_out(frame: usize, every: usize) -> bool {
+    every > 0 && frame % every == 0
+}
+
+/// Loads an image as RGB in 0..1, resized to `width x height` (area-like triangle filter).
+pub fn load_rgb(path: &Path, width: u32, height: u32) -> Result<Vec<[f64; 3]>, ReconError> {
+    let img = image::open(path).map_err(|e| ReconError::Image { file: path.to_path_buf(), detail: e.to_string() })?;
+    let rgb = img.to_rgb32f();
+    let rgb = if rgb.dimensions() != (width, height) {
+        image::imageops::resize(&rgb, width, height, FilterType::Triangle)
+    } else {
+        rgb
+    };
+    Ok(rgb.pixels().map(|p| p.0.map(|v| (v as f64).clamp(0.0, 1.0))).collect())
+}
+
+/// Extra per-view targets (the priors), loaded at the view's size; `None` when there are none.
+pub type PriorLoader<'a> = dyn Fn(&View) -> Result<Option<Targets>, ReconError> + Sync + 'a;
+
+/// Every image of the scene as a view at `scale`.
+pub fn load_views(
+    scene_dir: &Path,
+    scene: &Scene,
+    scale: f64,
+    held_out_every: usize,
+    priors: &PriorLoader,
+    progress: &ProgressBar,
+) -> Result<Vec<View>, ReconError> {
+    let mut jobs = Vec::new();
+    for f in &scene.frames {
+        for im in &f.images {
+            let cam = scene
+                .camera(&im.camera)
+                .ok_or_else(|| ReconError::Input(format!("frame {}: unknown camera {}", f.index, im.camera)))?;
+            jobs.push((f, im, cam));
+        }
+    }
+    if jobs.is_empty() {
+        return Err(ReconError::Input(format!("{}: the scene has no camera images", scene_dir.display())));
+    }
+    progress.set_length(jobs.len() as u64);
+    jobs.par_iter()
+        .map(|(f, im, cam)| {
+            let sc = splat_camera(cam, &f.world_from_ego, scale)?;
+            let rgb = load_rgb(&scene_dir.join(&im.path), sc.width, sc.height)?;
+            let mut view = View {
+                frame: f.index,
+                camera: im.camera.clone(),
+                time: f.timestamp_s,
+                cam: sc,
+                targets: Targets { rgb, ..Default::default() },
+                held_out: is_held_out(f.index, held_out_every),
+            };
+            if let Some(t) = priors(&view)? {
+                view.targets = Targets { rgb: view.targets.rgb, ..t };
+            }
+            progress.inc(1);
+            Ok(view)
+        })
+        .collect()
+}

@@ -1,0 +1,206 @@
+//! Initial Gaussians. The background comes from LiDAR when the scene has it, else from the depth
+//! priors back-projected through their views, else from random points in the cameras' bounds;
+//! each tracked object gets the LiDAR points inside its box (in its box frame), topped up with
+//! random points inside the box. Points are voxel-thinned and capped (seeded), coloured from the
+//! first view that sees them, and get the 3DGS start: isotropic scale = RMS distance to the three
+//! nearest neighbours, identity rotation, low opacity, SH DC from the colour.
+
+use crate::config::InitConfig;
+use crate::data::View;
+use crate::error::ReconError;
+use crate::model::{empty, Actor, SceneModel};
+use crate::pose::box_pose_at;
+use crate::sky::Sky;
+use glam::DVec3;
+use kiddo::{KdTree, SquaredEuclidean};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use scene::{ObjectClass, Scene};
+use serde::Serialize;
+use splat::sh::C0;
+use splat::Gaussians;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Where the start came from, for the model record and the log.
+#[derive(Clone, Debug, Serialize)]
+pub struct InitReport {
+    pub background_source: &'static str,
+    pub background_points: usize,
+    /// Per actor: track id, points from LiDAR, random points added.
+    pub actors: Vec<(String, usize, usize)>,
+}
+
+/// `1.1 x` the largest distance of a camera centre from their mean (3DGS's scene radius).
+pub fn scene_extent(views: &[View]) -> f64 {
+    let centres: Vec<DVec3> = views.iter().map(|v| DVec3::from(v.cam.center())).collect();
+    let mean = centres.iter().copied().sum::<DVec3>() / centres.len().max(1) as f64;
+    1.1 * centres.iter().map(|c| (*c - mean).length()).fold(0.0, f64::max).max(1e-3)
+}
+
+/// The colour a world point has in the first view of `frame` (or any view) that sees it.
+fn colour_of(p: DVec3, views: &[&View]) -> Option<[f64; 3]> {
+    views.iter().find_map(|v| {
+        let c = v.cam.to_camera(p.into());
+        if c[2] <= v.cam.near {
+            return None;
+        }
+        let (u, w) = (v.cam.fx * c[0] / c[2] + v.cam.cx, v.cam.fy * c[1] / c[2] + v.cam.cy);
+        (u >= 0.0 && w >= 0.0 && u < v.cam.width as f64 && w < v.cam.height as f64)
+            .then(|| v.targets.rgb[w as usize * v.width() + u as usize])
+    })
+}
+
+/// Gaussians at `points` with colours, isotropic 3-NN scales, identity rotations.
+pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, opacity: f64) -> Gaussians {
+    let mut g = empty(degree);
+    let mut tree: KdTree<f64, 3> = KdTree::new();
+    for (i, (p, _)) in points.iter().enumerate() {
+        tree.add(&p.to_array(), i as u64);
+    }
+    let k = g.coeffs() * 3;
+    for (p, c) in points {
+        let near = tree.nearest_n::<SquaredEuclidean>(&p.to_array(), 4);
+        let d2: Vec<f64> = near.iter().map(|n| n.distance).filter(|d| *d > 0.0).take(3).collect();
+        let mean_d2 = if d2.is_empty() { 0.01 } else { d2.iter().sum::<f64>() / d2.len() as f64 };
+        let s = mean_d2.sqrt().max(1e-4).ln();
+        g.means.push(p.to_array());
+        g.log_scales.push([s; 3]);
+        g.rotations.push([1.0, 0.0, 0.0, 0.0]);
+        g.opacity_logits.push((opacity / (1.0 - opacity)).ln());
+        let mut sh = vec![0.0; k];
+        for ch in 0..3 {
+            sh[ch] = (c[ch] - 0.5) / C0;
+        }
+        g.sh.extend(sh);
+    }
+    g
+}
+
+fn thin(points: Vec<(DVec3, [f64; 3])>, voxel: f64, cap: usize, rng: &mut ChaCha8Rng) -> Vec<(DVec3, [f64; 3])> {
+    let mut seen: HashMap<[i64; 3], ()> = HashMap::new();
+    let mut out: Vec<_> = points
+        .into_iter()
+        .filter(|(p, _)| {
+            let key = [(p.x / voxel).floor() as i64, (p.y / voxel).floor() as i64, (p.z / voxel).floor() as i64];
+            seen.insert(key, ()).is_none()
+        })
+        .collect();
+    if out.len() > cap {
+        out.shuffle(rng);
+        out.truncate(cap);
+    }
+    out
+}
+
+/// Builds the starting model.
+pub fn initialise(
+    scene_dir: &Path,
+    scene: &Scene,
+    views: &[View],
+    cfg: &InitConfig,
+    sh_degree: usize,
+    sky_res: usize,
+    seed: u64,
+) -> Result<(SceneModel, InitReport), ReconError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1a17);
+    let tracks: Vec<&scene::Track> = scene
+        .tracks
+        .iter()
+        .filter(|t| matches!(t.class, ObjectClass::Vehicle | ObjectClass::Cyclist | ObjectClass::Pedestrian))
+        .filter(|t| t.valid_states().next().is_some())
+        .collect();
+    let mut bg_points = Vec::new();
+    let mut actor_points: Vec<Vec<(DVec3, [f64; 3])>> = vec![Vec::new(); tracks.len()];
+    let mut source = "random";
+    for f in &scene.frames {
+        let fviews: Vec<&View> = views.iter().filter(|v| v.frame == f.index).collect();
+        let poses: Vec<_> = tracks
+            .iter()
+            .map(|t| {
+                let size = t.state_at(f.index).filter(|s| s.valid).map(|s| s.size_lwh);
+                box_pose_at(scene, t, f.timestamp_s).zip(size).map(|(p, s)| (p.world_from_box().inverse(), s))
+            })
+            .collect();
+        let mut add = |p_world: DVec3, colour: [f64; 3]| {
+            for (ti, pose) in poses.iter().enumerate() {
+                if let Some((box_from_world, s)) = pose {
+                    let b = box_from_world.transform_point(p_world);
+                    if b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2] {
+                        actor_points[ti].push((b, colour));
+                        return;
+                    }
+                }
+            }
+            bg_points.push((p_world, colour));
+        };
+        if let Some(l) = &f.lidar {
+            source = "lidar";
+            let pts = scene::format::read_lidar(&scene_dir.join(&l.path))?;
+            for p in pts {
+                let pw = f.world_from_ego.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+                if let Some(c) = colour_of(pw, &fviews) {
+                    add(pw, c);
+                }
+            }
+        } else {
+            for v in fviews.iter().filter(|v| !v.held_out) {
+                let Some(depth) = &v.targets.depth else { continue };
+                source = "depth";
+                let stride = cfg.depth_stride.max(1);
+                for y in (0..v.height()).step_by(stride) {
+                    for x in (0..v.width()).step_by(stride) {
+                        let d = depth[y * v.width() + x];
+                        if d <= 0.0 {
+                            continue;
+                        }
+                        let pc =
+                            [(x as f64 + 0.5 - v.cam.cx) / v.cam.fx * d, (y as f64 + 0.5 - v.cam.cy) / v.cam.fy * d, d];
+                        let m = &v.cam.camera_from_world;
+                        let pw: [f64; 3] = std::array::from_fn(|c| (0..3).map(|r| m[r][c] * (pc[r] - m[r][3])).sum());
+                        add(DVec3::from(pw), v.targets.rgb[y * v.width() + x]);
+                    }
+                }
+            }
+        }
+    }
+    if bg_points.is_empty() {
+        source = "random";
+        let centres: Vec<DVec3> = views.iter().map(|v| DVec3::from(v.cam.center())).collect();
+        let (lo, hi) = centres.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+        let pad = DVec3::splat(0.1 * (hi - lo).length().max(1.0));
+        let (lo, hi) = (lo - pad, hi + pad);
+        for _ in 0..cfg.random_points {
+            let p =
+                DVec3::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y), rng.random_range(lo.z..hi.z));
+            bg_points.push((p, [rng.random(), rng.random(), rng.random()]));
+        }
+    }
+    let bg_points = thin(bg_points, cfg.voxel_m, cfg.max_points, &mut rng);
+    let background = gaussians_at(&bg_points, sh_degree, cfg.opacity);
+    let mut actors = Vec::new();
+    let mut report = InitReport { background_source: source, background_points: bg_points.len(), actors: vec![] };
+    for (t, pts) in tracks.iter().zip(actor_points) {
+        let size = t.median_size_lwh();
+        let mut pts = thin(pts, cfg.voxel_m / 3.0, cfg.actor_points, &mut rng);
+        let from_lidar = pts.len();
+        let want = (cfg.actor_points / 4).max(50);
+        while pts.len() < want {
+            let p = DVec3::new(
+                rng.random_range(-0.5..0.5) * size[0],
+                rng.random_range(-0.5..0.5) * size[1],
+                rng.random_range(-0.5..0.5) * size[2],
+            );
+            pts.push((p, [0.5; 3]));
+        }
+        report.actors.push((t.id.clone(), from_lidar, pts.len() - from_lidar));
+        actors.push(Actor {
+            track_id: t.id.clone(),
+            size_lwh: size,
+            gaussians: gaussians_at(&pts, sh_degree, cfg.opacity),
+        });
+    }
+    let model = SceneModel { background, actors, sky: Sky::new(sky_res, [0.5; 3]) };
+    Ok((model, report))
+}

@@ -1,0 +1,30 @@
+//! `recon`: the Reconstruct stage. A scene directory becomes an editable Street-Gaussians model:
+//! a static background in the world frame, one Gaussian model per tracked object in its box frame
+//! (placed at time `t` by the interpolated track pose), and a learnable sky cube map composited
+//! behind them. Training uses the paper's geometry constraints (flattening, normal and
+//! geometry-consistency losses under the ground+object supervision mask) on top of the 3DGS
+//! photometric loss, Adam and adaptive density control, on any rasterizer `Backend` (the CPU
+//! reference today). See docs/recon.md.
+
+pub mod backend;
+pub mod camera;
+pub mod checkpoint;
+pub mod compose;
+pub mod config;
+pub mod data;
+pub mod densify;
+pub mod error;
+pub mod init;
+pub mod loss;
+pub mod metrics;
+pub mod model;
+pub mod optim;
+pub mod pose;
+pub mod sh_rotate;
+pub mod sky;
+pub mod ssim;
+pub mod train;
+
+pub use config::TrainConfig;
+pub use error::ReconError;
+pub use model::SceneModel;

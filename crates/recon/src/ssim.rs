@@ -1,0 +1,138 @@
+//! SSIM (Wang et al. 2004) with an 11x11 Gaussian window, sigma 1.5, C1 = 0.01^2, C2 = 0.03^2,
+//! zero padding ("same" size, as 3DGS's training loss computes it), per channel, averaged; and its
+//! exact gradient with respect to the rendered image. The window is separable, so every
+//! filtering is two 1D passes, and the filter is symmetric, so its adjoint is itself.
+//!
+//! With `mu_x = G*x`, `s_xx = G*x^2 - mu_x^2`, `s_xy = G*(xy) - mu_x mu_y`,
+//! `A1 = 2 mu_x mu_y + C1`, `A2 = 2 s_xy + C2`, `B1 = mu_x^2 + mu_y^2 + C1`,
+//! `B2 = s_xx + s_yy + C2`, `S = A1 A2 / (B1 B2)`:
+//! `dS/dmu_x = 2 mu_y (A2 - A1) / (B1 B2) - 2 mu_x S (1/B1 - 1/B2)`, `dS/dE[x^2] = -S / B2`,
+//! `dS/dE[xy] = 2 A1 / (B1 B2)`, and `dS/dx = G*(dS/dmu_x) + 2 x G*(dS/dE[x^2]) + y G*(dS/dE[xy])`.
+
+use rayon::prelude::*;
+
+const C1: f64 = 0.01 * 0.01;
+const C2: f64 = 0.03 * 0.03;
+const RADIUS: usize = 5;
+
+fn window() -> [f64; 2 * RADIUS + 1] {
+    let mut w = std::array::from_fn(|i| {
+        let d = i as f64 - RADIUS as f64;
+        (-d * d / (2.0 * 1.5 * 1.5)).exp()
+    });
+    let s: f64 = w.iter().sum();
+    w.iter_mut().for_each(|v| *v /= s);
+    w
+}
+
+/// Separable Gaussian filtering with zero padding, `src` and the result `width x height`.
+pub fn blur(src: &[f64], width: usize, height: usize) -> Vec<f64> {
+    let w = window();
+    let mut tmp = vec![0.0; src.len()];
+    tmp.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (k, wk) in w.iter().enumerate() {
+                let xx = x as isize + k as isize - RADIUS as isize;
+                if xx >= 0 && (xx as usize) < width {
+                    s += wk * src[y * width + xx as usize];
+                }
+            }
+            *out = s;
+        }
+    });
+    let mut out = vec![0.0; src.len()];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (k, wk) in w.iter().enumerate() {
+                let yy = y as isize + k as isize - RADIUS as isize;
+                if yy >= 0 && (yy as usize) < height {
+                    s += wk * tmp[yy as usize * width + x];
+                }
+            }
+            *o = s;
+        }
+    });
+    out
+}
+
+/// Mean SSIM of one channel pair and, when `grad` is given, `d meanSSIM / d x` written into it.
+pub fn ssim_channel(x: &[f64], y: &[f64], width: usize, height: usize, grad: Option<&mut [f64]>) -> f64 {
+    let n = x.len();
+    let mu_x = blur(x, width, height);
+    let mu_y = blur(y, width, height);
+    let xx: Vec<f64> = x.iter().map(|v| v * v).collect();
+    let yy: Vec<f64> = y.iter().map(|v| v * v).collect();
+    let xy: Vec<f64> = x.iter().zip(y).map(|(a, b)| a * b).collect();
+    let (exx, eyy, exy) = (blur(&xx, width, height), blur(&yy, width, height), blur(&xy, width, height));
+    let mut s_map = vec![0.0; n];
+    let (mut d_mu, mut d_xx, mut d_xy) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let inv_n = 1.0 / n as f64;
+    for i in 0..n {
+        let (mx, my) = (mu_x[i], mu_y[i]);
+        let a1 = 2.0 * mx * my + C1;
+        let a2 = 2.0 * (exy[i] - mx * my) + C2;
+        let b1 = mx * mx + my * my + C1;
+        let b2 = (exx[i] - mx * mx) + (eyy[i] - my * my) + C2;
+        let s = a1 * a2 / (b1 * b2);
+        s_map[i] = s;
+        d_mu[i] = inv_n * (2.0 * my * (a2 - a1) / (b1 * b2) - 2.0 * mx * s * (1.0 / b1 - 1.0 / b2));
+        d_xx[i] = inv_n * (-s / b2);
+        d_xy[i] = inv_n * (2.0 * a1 / (b1 * b2));
+    }
+    if let Some(g) = grad {
+        let (g_mu, g_xx, g_xy) = (blur(&d_mu, width, height), blur(&d_xx, width, height), blur(&d_xy, width, height));
+        for i in 0..n {
+            g[i] = g_mu[i] + 2.0 * x[i] * g_xx[i] + y[i] * g_xy[i];
+        }
+    }
+    // Fixed-order sum (deterministic whatever the thread count).
+    s_map.iter().sum::<f64>() * inv_n
+}
+
+/// Mean SSIM over the three channels of RGB images (values 0..1).
+pub fn ssim_rgb(x: &[[f64; 3]], y: &[[f64; 3]], width: usize, height: usize) -> f64 {
+    (0..3)
+        .map(|c| {
+            let xc: Vec<f64> = x.iter().map(|p| p[c]).collect();
+            let yc: Vec<f64> = y.iter().map(|p| p[c]).collect();
+            ssim_channel(&xc, &yc, width, height, None)
+        })
+        .sum::<f64>()
+        / 3.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pattern(w: usize, h: usize, seed: f64) -> Vec<f64> {
+        (0..w * h).map(|i| 0.5 + 0.4 * ((i as f64 * 0.37 + seed).sin() * (i as f64 * 0.011).cos())).collect()
+    }
+
+    #[test]
+    fn identical_images_score_one_and_noise_lowers_it() {
+        let (w, h) = (24, 17);
+        let x = pattern(w, h, 0.0);
+        assert!((ssim_channel(&x, &x, w, h, None) - 1.0).abs() < 1e-12);
+        let y = pattern(w, h, 0.3);
+        let s = ssim_channel(&x, &y, w, h, None);
+        assert!(s < 0.99 && s > -1.0);
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let (w, h) = (19, 14);
+        let (x, y) = (pattern(w, h, 0.0), pattern(w, h, 1.7));
+        let mut g = vec![0.0; w * h];
+        let s0 = ssim_channel(&x, &y, w, h, Some(&mut g));
+        let eps = 1e-6;
+        for i in [0, 5, w + 3, w * h / 2, w * h - 1] {
+            let mut xp = x.clone();
+            xp[i] += eps;
+            let fd = (ssim_channel(&xp, &y, w, h, None) - s0) / eps;
+            assert!((fd - g[i]).abs() < 1e-6 * (1.0 + fd.abs()), "pixel {i}: fd {fd} analytic {}", g[i]);
+        }
+    }
+}

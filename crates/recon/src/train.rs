@@ -1,0 +1,230 @@
+//! The training loop: per iteration one training view (a seeded permutation per epoch, derived
+//! from `(seed, epoch)`), compose the scene at the view's time, render, the view loss plus the
+//! flattening term, backward, scatter to the models, Adam, and density control on the 3DGS
+//! schedule. Every random choice derives from `(seed, iteration)` and every reduction runs in a
+//! fixed order, so a resumed run reproduces an uninterrupted one exactly.
+
+use crate::backend::Backend;
+use crate::camera::pixel_ray;
+use crate::checkpoint::TrainState;
+use crate::compose::{compose_into, reset_gradients, scatter_gradients, Composed, Layers};
+use crate::config::TrainConfig;
+use crate::data::View;
+use crate::densify::{densify_and_prune, reset_opacity, Counts, Stats};
+use crate::loss::{view_loss, ChannelGrads, LossParts, Rendered};
+use crate::optim::{adam_step, means_lr, AdamState};
+use crate::sky::Sky;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use scene::Scene;
+use splat::backward::{Gradients, Upstream};
+use splat::render::{Image, RenderOptions};
+use splat::Gaussians;
+
+/// What one iteration measured.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepReport {
+    pub loss: LossParts,
+    pub psnr: f64,
+    pub gaussians: usize,
+    pub densified: Option<Counts>,
+}
+
+pub struct Trainer<'a, B: Backend> {
+    pub scene: &'a Scene,
+    pub views: &'a [View],
+    pub cfg: TrainConfig,
+    pub backend: B,
+    pub state: TrainState,
+    pub extent: f64,
+    train_views: Vec<usize>,
+    composed: Composed,
+    img: Image,
+    ctx: B::Context,
+    wgrads: Gradients,
+    grads: Vec<Gaussians>,
+    cgrads: ChannelGrads,
+    sky_grad: Vec<f64>,
+}
+
+/// Seed for a purpose at an iteration (splitmix-style mixing).
+pub fn derive_seed(seed: u64, purpose: u64, n: u64) -> u64 {
+    let mut z = seed ^ purpose.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ n.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+impl<'a, B: Backend> Trainer<'a, B> {
+    pub fn new(
+        scene: &'a Scene,
+        views: &'a [View],
+        cfg: TrainConfig,
+        backend: B,
+        state: TrainState,
+        extent: f64,
+    ) -> Self {
+        let train_views = (0..views.len()).filter(|&i| !views[i].held_out).collect();
+        Trainer {
+            scene,
+            views,
+            cfg,
+            backend,
+            state,
+            extent,
+            train_views,
+            composed: Composed::default(),
+            img: Image::default(),
+            ctx: B::Context::default(),
+            wgrads: Gradients::default(),
+            grads: Vec::new(),
+            cgrads: ChannelGrads::default(),
+            sky_grad: Vec::new(),
+        }
+    }
+
+    /// A fresh state for `model`.
+    pub fn fresh_state(model: crate::model::SceneModel) -> TrainState {
+        let adam = AdamState::new(&model);
+        let stats = model
+            .sets()
+            .map(|g| Stats { grad_sum: vec![0.0; g.len()], seen: vec![0; g.len()], max_radius: vec![0.0; g.len()] })
+            .collect();
+        TrainState { next_iteration: 0, model, adam, stats }
+    }
+
+    fn view_for(&self, it: usize) -> usize {
+        let n = self.train_views.len();
+        let epoch = (it / n) as u64;
+        let mut order: Vec<usize> = self.train_views.clone();
+        order.shuffle(&mut ChaCha8Rng::seed_from_u64(derive_seed(self.cfg.seed, 1, epoch)));
+        order[it % n]
+    }
+
+    /// Runs iteration `state.next_iteration` and advances it.
+    pub fn step(&mut self) -> StepReport {
+        let it = self.state.next_iteration;
+        let view = &self.views[self.view_for(it)];
+        let degree = self.cfg.active_degree(it);
+        let opts = RenderOptions::default();
+        compose_into(&self.state.model, self.scene, view.time, degree, Layers::All, &|_| None, &mut self.composed);
+        self.backend.render(&self.composed.world, &view.cam, &opts, &mut self.img, &mut self.ctx);
+        let (w, h) = (view.width(), view.height());
+        let sky = &self.state.model.sky;
+        let taps: Vec<_> = (0..w * h).map(|i| sky.taps(pixel_ray(&view.cam, i % w, i / w))).collect();
+        let sky_rgb: Vec<[f64; 3]> = taps.iter().map(|t| sky.sample(t)).collect();
+        let r = Rendered {
+            width: w,
+            height: h,
+            rgb: &self.img.rgb,
+            alpha: &self.img.alpha,
+            depth: &self.img.depth,
+            normal: &self.img.normal,
+            sky: &sky_rgb,
+        };
+        let mut parts = view_loss(&r, &view.targets, &self.cfg.loss, &mut self.cgrads);
+        let mse = crate::metrics::mse(&crate::loss::composite(&r), &view.targets.rgb);
+        let up = Upstream {
+            rgb: &self.cgrads.rgb,
+            alpha: &self.cgrads.alpha,
+            depth: &self.cgrads.depth,
+            normal: &self.cgrads.normal,
+            features: &[],
+        };
+        self.backend.backward(&self.composed.world, &view.cam, &opts, &self.ctx, &up, &mut self.wgrads);
+        reset_gradients(&self.state.model, &mut self.grads);
+        scatter_gradients(&self.composed, &self.wgrads, &mut self.grads);
+        self.sky_grad.clear();
+        self.sky_grad.resize(sky.texels.len(), 0.0);
+        for (t, g) in taps.iter().zip(&self.cgrads.sky) {
+            Sky::scatter(t, *g, &mut self.sky_grad);
+        }
+        // Flattening and density statistics over the Gaussians drawn in this view.
+        let mut drawn = Vec::new();
+        self.backend.for_each_drawn(&self.ctx, &mut |i, r| drawn.push((i, r)));
+        let owner = |wi: usize, parts: &[crate::compose::Part]| {
+            parts
+                .iter()
+                .find(|p| wi >= p.start && wi < p.start + p.len)
+                .map(|p| (p.actor.map_or(0, |a| a + 1), wi - p.start))
+        };
+        let densifying = it < self.cfg.densify.until;
+        for st in self.state.stats.iter_mut().zip(self.state.model.sets()) {
+            st.0.fit(st.1.len());
+        }
+        let max_side = w.max(h) as f64;
+        let mut flat = 0.0;
+        let nvis = drawn.len().max(1) as f64;
+        for &(wi, radius) in &drawn {
+            let Some((set, i)) = owner(wi, &self.composed.parts) else { continue };
+            let scales = &self.composed.world.log_scales[wi];
+            let (k, lmin) = (0..3).map(|k| (k, scales[k])).fold((0, f64::MAX), |a, b| if b.1 < a.1 { b } else { a });
+            flat += lmin.exp();
+            if self.cfg.loss.flat > 0.0 {
+                self.grads[set].log_scales[i][k] += self.cfg.loss.flat * lmin.exp() / nvis;
+            }
+            if densifying {
+                self.state.stats[set].record(i, self.wgrads.mean2d_norm[wi], radius, max_side);
+            }
+        }
+        parts.flat = flat / nvis;
+        parts.total += self.cfg.loss.flat * parts.flat;
+        let mean_lr = means_lr(&self.cfg.lr, self.extent, it, self.cfg.iterations);
+        adam_step(&mut self.state.model, &mut self.state.adam, &self.grads, &self.sky_grad, &self.cfg.lr, mean_lr);
+        let densified = self.density_control(it + 1);
+        self.state.next_iteration = it + 1;
+        StepReport {
+            loss: parts,
+            psnr: crate::metrics::psnr_from_mse(mse),
+            gaussians: self.state.model.gaussian_count(),
+            densified,
+        }
+    }
+
+    /// The 3DGS schedule on 1-based iteration `n`.
+    fn density_control(&mut self, n: usize) -> Option<Counts> {
+        let d = self.cfg.densify.clone();
+        if n >= d.until {
+            return None;
+        }
+        let mut out = None;
+        if n > d.from && n % d.interval == 0 {
+            let grow = self.state.model.gaussian_count() < d.max_gaussians;
+            let prune_big = n > d.opacity_reset_interval;
+            let mut total = Counts::default();
+            let st = &mut self.state;
+            let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
+            for (i, g) in sets.into_iter().enumerate() {
+                let seed = derive_seed(self.cfg.seed, 2, (n * 1000 + i) as u64);
+                let c = densify_and_prune(
+                    g,
+                    &mut st.adam.m[i],
+                    &mut st.adam.v[i],
+                    &st.stats[i],
+                    &d,
+                    self.extent,
+                    grow,
+                    prune_big,
+                    seed,
+                );
+                total.cloned += c.cloned;
+                total.split += c.split;
+                total.pruned += c.pruned;
+            }
+            for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
+                s.grad_sum.clear();
+                s.seen.clear();
+                s.max_radius.clear();
+                s.fit(g.len());
+            }
+            out = Some(total);
+        }
+        if d.opacity_reset_interval > 0 && n % d.opacity_reset_interval == 0 {
+            let st = &mut self.state;
+            let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
+            reset_opacity(&mut sets, &mut st.adam);
+        }
+        out
+    }
+}
