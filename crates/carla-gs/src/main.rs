@@ -36,6 +36,12 @@ enum Command {
     Synth(cmd::synth::Args),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
     Metrics(cmd::metrics::Args),
+    /// Train a Street-Gaussians model of a scene (background, actors, sky) with geometry losses.
+    Train(cmd::recon::TrainArgs),
+    /// Score a trained model on the held-out views (PSNR, SSIM, normal errors, actor mask IoU).
+    EvalRecon(cmd::recon::EvalArgs),
+    /// Render one camera of a trained model at a frame (optionally moved sideways).
+    Render(cmd::recon::RenderArgs),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +66,9 @@ fn main() -> ExitCode {
         Command::RenderPly(a) => cmd::splat::render(a),
         Command::BenchSplat(a) => cmd::splat::bench(a),
         Command::Synth(a) => cmd::synth::run(a),
+        Command::Train(a) => cmd::recon::train(a),
+        Command::EvalRecon(a) => cmd::recon::eval(a),
+        Command::Render(a) => cmd::recon::render(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

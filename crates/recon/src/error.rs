@@ -10,7 +10,7 @@ pub enum ReconError {
     Image { file: PathBuf, detail: String },
     #[error(transparent)]
     Scene(#[from] scene::SceneError),
-    #[error("{file}: {detail}")]
+    #[error("{detail}")]
     Ply { file: PathBuf, detail: String },
     #[error("{file}: {detail}")]
     Format { file: PathBuf, detail: String },

@@ -6,6 +6,7 @@ pub mod llm;
 pub mod metrics;
 pub mod progress;
 pub mod reason;
+pub mod recon;
 pub mod simulate;
 pub mod splat;
 pub mod synth;

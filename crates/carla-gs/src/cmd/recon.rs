@@ -1,0 +1,187 @@
+//! `carla-gs train`, `eval-recon` and `render`: argument parsing around the `recon` crate.
+
+use super::progress::count_bar;
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use recon::backend::Cpu;
+use recon::compose::Layers;
+use recon::data::PriorLoader;
+use recon::TrainConfig;
+use std::path::{Path, PathBuf};
+
+/// Where the rasterizer runs.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum Device {
+    Cpu,
+}
+
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    scene: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+    /// TOML training config (docs/recon.md); flags below override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    iters: Option<usize>,
+    /// Train at this fraction of the image size.
+    #[arg(long)]
+    scale: Option<f64>,
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Continue from <out>/checkpoint.bin (same settings required).
+    #[arg(long)]
+    resume: bool,
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
+    /// Stop after this iteration (with a checkpoint), to continue later with --resume.
+    #[arg(long)]
+    stop_after: Option<usize>,
+}
+
+pub fn load_config(config: Option<&Path>) -> anyhow::Result<TrainConfig> {
+    match config {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+            TrainConfig::from_toml(&text).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))
+        }
+        None => Ok(TrainConfig::default()),
+    }
+}
+
+/// The scene's priors as training targets (none until `carla-gs priors` has run).
+pub fn priors_of(_scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> {
+    Ok(Box::new(|_v| Ok(None)))
+}
+
+pub fn train(a: TrainArgs) -> anyhow::Result<()> {
+    let Device::Cpu = a.device;
+    let mut cfg = load_config(a.config.as_deref())?;
+    if let Some(n) = a.iters {
+        cfg.iterations = n;
+    }
+    if let Some(s) = a.scale {
+        cfg.scale = s;
+    }
+    if let Some(s) = a.seed {
+        cfg.seed = s;
+    }
+    cfg.validate().map_err(|e| anyhow::anyhow!("settings: {e}"))?;
+    let priors = priors_of(&a.scene)?;
+    let pb = ProgressBar::new(cfg.iterations as u64);
+    pb.set_style(
+        ProgressStyle::with_template("train [{bar:30}] {pos}/{len} {per_sec} ({eta}) {msg}").expect("valid template"),
+    );
+    let req = recon::session::TrainRequest {
+        scene_dir: &a.scene,
+        out_dir: &a.out,
+        cfg,
+        resume: a.resume,
+        stop_after: a.stop_after,
+        priors: priors.as_ref(),
+    };
+    let s = recon::session::train(req, Cpu, &pb)?;
+    pb.finish_and_clear();
+    println!(
+        "trained {} iterations ({} train / {} held-out views) in {:.1} s ({:.2} it/s): {} Gaussians, loss {:.4}, recent train PSNR {:.2} dB -> {}",
+        s.iterations_done,
+        s.views_train,
+        s.views_held_out,
+        s.seconds,
+        s.iterations_per_second,
+        s.gaussians,
+        s.last_loss.total,
+        s.recent_psnr,
+        a.out.display()
+    );
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    model: PathBuf,
+    scene: PathBuf,
+    /// Print the report as JSON (per view included).
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
+    let priors = priors_of(&a.scene)?;
+    let r = recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+        return Ok(());
+    }
+    let show = |name: &str, m: &Option<recon::eval::Mean>| match m {
+        Some(m) => println!("{name:<28} {:>9.4}  ({} views)", m.mean, m.count),
+        None => println!("{name:<28} {:>9}", "n/a"),
+    };
+    println!("held-out views: {}", r.views);
+    show("PSNR (dB)", &r.psnr);
+    show("SSIM", &r.ssim);
+    show("Normal L1 MAE vs prior (M)", &r.normal_prior_l1);
+    show("Normal Cos MAE vs prior (M)", &r.normal_prior_cos);
+    show("Normal L1 MAE vs GT (M)", &r.normal_gt_masked_l1);
+    show("Normal Cos MAE vs GT (M)", &r.normal_gt_masked_cos);
+    show("Normal L1 MAE vs GT (all)", &r.normal_gt_all_l1);
+    show("Normal Cos MAE vs GT (all)", &r.normal_gt_all_cos);
+    show("actor mask IoU", &r.actor_iou);
+    show("per-actor mask IoU", &r.per_actor_iou);
+    println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    model: PathBuf,
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    camera: String,
+    #[arg(long)]
+    frame: usize,
+    #[arg(long)]
+    out: PathBuf,
+    /// Move the camera sideways by this many metres (positive: to the ego's left).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    shift_m: f64,
+    /// Image scale (default: the model's training scale).
+    #[arg(long)]
+    scale: Option<f64>,
+    /// Draw only the tracked actors (over black).
+    #[arg(long)]
+    actors_only: bool,
+}
+
+pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    let (model, record) = recon::model_io::load_model(&a.model)?;
+    let scene = scene::load_scene(&a.scene)?;
+    let frame = scene
+        .frames
+        .get(a.frame)
+        .with_context(|| format!("--frame {}: the scene has {} frames", a.frame, scene.frames.len()))?;
+    let cam = scene.camera(&a.camera).with_context(|| {
+        let names: Vec<&str> = scene.cameras.iter().map(|c| c.name.as_str()).collect();
+        format!("--camera {}: not in the scene (cameras: {})", a.camera, names.join(", "))
+    })?;
+    let ego_from_shifted = scene::Transform3::from_yaw_translation(0.0, scene::glam::DVec3::new(0.0, a.shift_m, 0.0));
+    let world_from_ego = frame.world_from_ego * ego_from_shifted;
+    let sc = recon::camera::splat_camera(cam, &world_from_ego, a.scale.unwrap_or(record.scale))?;
+    let layers = if a.actors_only { Layers::ActorsOnly } else { Layers::All };
+    let bar = count_bar("render");
+    let d = recon::view::draw(&Cpu, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None);
+    bar.finish_and_clear();
+    recon::view::save_png(&a.out, d.width, d.height, &d.rgb)?;
+    println!(
+        "rendered {} frame {} (shift {:+.2} m) at {}x{} -> {}",
+        a.camera,
+        a.frame,
+        a.shift_m,
+        d.width,
+        d.height,
+        a.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,171 @@
+//! `eval-recon`: held-out views of a trained model against the scene. Per view: PSNR and SSIM of
+//! the composite; normal errors (L1 MAE, Cos MAE, rendered and reference normals both unit and in
+//! the OpenCV camera frame) against the depth-derived prior normals under the supervision mask M,
+//! and, on synthetic scenes, against the exact ground truth (under M, and over every surface
+//! pixel); actor-only mask IoU against the ground-truth instances (every actor together, and each
+//! actor alone where it covers at least 50 pixels). Means are over the views that have the value;
+//! the number of views behind each mean is reported beside it.
+
+use crate::backend::Backend;
+use crate::compose::Layers;
+use crate::data::{PriorLoader, View};
+use crate::error::ReconError;
+use crate::metrics::{iou, normal_errors, psnr, ssim_rgb};
+use crate::model::SceneModel;
+use crate::view::draw;
+use rayon::prelude::*;
+use scene::Scene;
+use serde::Serialize;
+use std::path::Path;
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ViewScore {
+    pub frame: usize,
+    pub camera: String,
+    pub psnr: f64,
+    pub ssim: f64,
+    /// (L1 MAE, Cos MAE) against prior normals under M.
+    pub normal_prior: Option<(f64, f64)>,
+    /// (L1 MAE, Cos MAE) against exact normals under M (synthetic scenes with priors).
+    pub normal_gt_masked: Option<(f64, f64)>,
+    /// (L1 MAE, Cos MAE) against exact normals over every surface pixel (synthetic scenes).
+    pub normal_gt_all: Option<(f64, f64)>,
+    pub actor_iou: Option<f64>,
+    /// (track id, IoU) for each actor seen on at least 50 pixels.
+    pub per_actor_iou: Vec<(String, f64)>,
+}
+
+/// A mean and how many values it is over.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Mean {
+    pub mean: f64,
+    pub count: usize,
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> Option<Mean> {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    (n > 0).then(|| Mean { mean: s / n as f64, count: n })
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct EvalReport {
+    pub views: usize,
+    pub psnr: Option<Mean>,
+    pub ssim: Option<Mean>,
+    pub normal_prior_l1: Option<Mean>,
+    pub normal_prior_cos: Option<Mean>,
+    pub normal_gt_masked_l1: Option<Mean>,
+    pub normal_gt_masked_cos: Option<Mean>,
+    pub normal_gt_all_l1: Option<Mean>,
+    pub normal_gt_all_cos: Option<Mean>,
+    pub actor_iou: Option<Mean>,
+    pub per_actor_iou: Option<Mean>,
+    pub lpips: Option<f64>,
+    pub per_view: Vec<ViewScore>,
+}
+
+fn score<B: Backend>(
+    backend: &B,
+    model: &SceneModel,
+    scene: &Scene,
+    scene_dir: &Path,
+    v: &View,
+) -> Result<ViewScore, ReconError> {
+    let d = draw(backend, model, scene, &v.cam, v.time, Layers::All, &|_| None);
+    let t = &v.targets;
+    let mut s = ViewScore {
+        frame: v.frame,
+        camera: v.camera.clone(),
+        psnr: psnr(&d.rgb, &t.rgb),
+        ssim: ssim_rgb(
+            &d.rgb.iter().map(|p| p.map(|x| x.clamp(0.0, 1.0))).collect::<Vec<_>>(),
+            &t.rgb,
+            d.width,
+            d.height,
+        ),
+        ..Default::default()
+    };
+    let in_m = |i: usize| t.mask.as_ref().is_some_and(|m| m[i]);
+    if let Some(nref) = &t.normal {
+        let (l1, cos, n) = normal_errors(&d.normal, nref, &in_m);
+        s.normal_prior = (n > 0).then_some((l1, cos));
+    }
+    let cam = scene.camera(&v.camera).ok_or_else(|| ReconError::Input(format!("unknown camera {}", v.camera)))?;
+    if let Some(gt) = crate::gt::load(scene_dir, v.frame, cam, d.width, d.height)? {
+        if t.mask.is_some() {
+            let (l1, cos, n) = normal_errors(&d.normal, &gt.normal, &in_m);
+            s.normal_gt_masked = (n > 0).then_some((l1, cos));
+        }
+        let (l1, cos, n) = normal_errors(&d.normal, &gt.normal, &|_| true);
+        s.normal_gt_all = (n > 0).then_some((l1, cos));
+        let actors = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|_| None);
+        let rendered: Vec<bool> = actors.alpha.iter().map(|a| *a > 0.5).collect();
+        let truth: Vec<bool> = gt.track.iter().map(|k| k.is_some()).collect();
+        s.actor_iou = iou(&rendered, &truth);
+        for (ai, actor) in model.actors.iter().enumerate() {
+            let Some(k) = gt.track_ids.iter().position(|id| *id == actor.track_id) else { continue };
+            let truth: Vec<bool> = gt.track.iter().map(|t| *t == Some(k)).collect();
+            if truth.iter().filter(|x| **x).count() < 50 {
+                continue;
+            }
+            let alone = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
+            let mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
+            if let Some(x) = iou(&mask, &truth) {
+                s.per_actor_iou.push((actor.track_id.clone(), x));
+            }
+        }
+    }
+    Ok(s)
+}
+
+/// Scores the held-out views of `views` (every view when none is held out).
+pub fn evaluate<B: Backend>(
+    backend: &B,
+    model: &SceneModel,
+    scene: &Scene,
+    scene_dir: &Path,
+    views: &[View],
+) -> Result<EvalReport, ReconError> {
+    let held: Vec<&View> = views.iter().filter(|v| v.held_out).collect();
+    let chosen: Vec<&View> = if held.is_empty() { views.iter().collect() } else { held };
+    let per_view: Vec<ViewScore> =
+        chosen.par_iter().map(|v| score(backend, model, scene, scene_dir, v)).collect::<Result<_, _>>()?;
+    let pick = |f: &dyn Fn(&ViewScore) -> Option<f64>| mean(per_view.iter().filter_map(f));
+    Ok(EvalReport {
+        views: per_view.len(),
+        psnr: pick(&|s| Some(s.psnr)),
+        ssim: pick(&|s| Some(s.ssim)),
+        normal_prior_l1: pick(&|s| s.normal_prior.map(|x| x.0)),
+        normal_prior_cos: pick(&|s| s.normal_prior.map(|x| x.1)),
+        normal_gt_masked_l1: pick(&|s| s.normal_gt_masked.map(|x| x.0)),
+        normal_gt_masked_cos: pick(&|s| s.normal_gt_masked.map(|x| x.1)),
+        normal_gt_all_l1: pick(&|s| s.normal_gt_all.map(|x| x.0)),
+        normal_gt_all_cos: pick(&|s| s.normal_gt_all.map(|x| x.1)),
+        actor_iou: pick(&|s| s.actor_iou),
+        per_actor_iou: mean(per_view.iter().flat_map(|s| s.per_actor_iou.iter().map(|x| x.1))),
+        lpips: None,
+        per_view,
+    })
+}
+
+/// Loads a model directory and its scene, then scores the held-out views under the model's split
+/// and scale.
+pub fn evaluate_model_dir<B: Backend>(
+    backend: &B,
+    model_dir: &Path,
+    scene_dir: &Path,
+    priors: &PriorLoader,
+) -> Result<EvalReport, ReconError> {
+    let (model, record) = crate::model_io::load_model(model_dir)?;
+    let cfg = crate::model_io::load_config(model_dir)?;
+    let (scene, views) = crate::session::prepare(scene_dir, &cfg, priors)?;
+    if scene.name != record.scene_name {
+        return Err(ReconError::Input(format!(
+            "{}: model was trained on scene {:?}, not {:?}",
+            model_dir.display(),
+            record.scene_name,
+            scene.name
+        )));
+    }
+    evaluate(backend, &model, &scene, scene_dir, &views)
+}

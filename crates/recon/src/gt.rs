@@ -1,0 +1,92 @@
+//! Reading the exact ground truth of synthetic scenes (`<scene>/gt/`, format in
+//! docs/scene-format.md) at a view's size: camera-frame normals (converted from Waymo camera axes
+//! to the rasterizer's OpenCV axes) and instance ids with their track ids. Maps are sampled at the
+//! full-size pixel nearest to each view pixel's centre (no blending across edges).
+
+use crate::error::ReconError;
+use serde::Deserialize;
+use std::io::Read;
+use std::path::Path;
+
+#[derive(Deserialize)]
+struct Instance {
+    instance: u16,
+    track_id: String,
+}
+
+#[derive(Deserialize)]
+struct Index {
+    instances: Vec<Instance>,
+}
+
+/// Ground truth of one view at the view's size.
+pub struct GroundTruth {
+    /// Unit normals in OpenCV camera axes; `[0, 0, 0]` for sky.
+    pub normal: Vec<[f64; 3]>,
+    /// Track id of the vehicle at each pixel, if any.
+    pub track: Vec<Option<usize>>,
+    /// Track ids, indexed by the values of `track`.
+    pub track_ids: Vec<String>,
+}
+
+fn gunzip(path: &Path) -> Result<Vec<u8>, ReconError> {
+    let f = std::fs::File::open(path).map_err(crate::error::io(path))?;
+    let mut out = Vec::new();
+    flate2::read::GzDecoder::new(f).read_to_end(&mut out).map_err(crate::error::io(path))?;
+    Ok(out)
+}
+
+fn resample<T: Copy>(src: &[T], sw: usize, sh: usize, w: usize, h: usize) -> Vec<T> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let sx = (((x as f64 + 0.5) * sw as f64 / w as f64) as usize).min(sw - 1);
+            let sy = (((y as f64 + 0.5) * sh as f64 / h as f64) as usize).min(sh - 1);
+            src[sy * sw + sx]
+        })
+        .collect()
+}
+
+/// The ground truth of `(frame, camera)` at `w x h`, or `None` when the scene has no `gt/`.
+pub fn load(
+    scene_dir: &Path,
+    frame: usize,
+    camera: &scene::Camera,
+    w: usize,
+    h: usize,
+) -> Result<Option<GroundTruth>, ReconError> {
+    let gt = scene_dir.join("gt");
+    let index_path = gt.join("gt.json");
+    if !index_path.is_file() {
+        return Ok(None);
+    }
+    let index: Index = scene::format::read_json(&index_path)?;
+    let (sw, sh) = (camera.width as usize, camera.height as usize);
+    let stem = format!("{frame:06}_{}", camera.name);
+    let npath = gt.join(format!("{stem}.normal_cam.f32.gz"));
+    let nb = gunzip(&npath)?;
+    if nb.len() != sw * sh * 12 {
+        return Err(ReconError::Format {
+            file: npath,
+            detail: format!("{} bytes, expected {}", nb.len(), sw * sh * 12),
+        });
+    }
+    let f: Vec<f32> = nb.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    // Waymo camera (x fwd, y left, z up) -> OpenCV (x right, y down, z fwd).
+    let normals: Vec<[f64; 3]> = f.chunks_exact(3).map(|n| [-(n[1] as f64), -(n[2] as f64), n[0] as f64]).collect();
+    let ipath = gt.join(format!("{stem}.instance.u16.gz"));
+    let ib = gunzip(&ipath)?;
+    if ib.len() != sw * sh * 2 {
+        return Err(ReconError::Format {
+            file: ipath,
+            detail: format!("{} bytes, expected {}", ib.len(), sw * sh * 2),
+        });
+    }
+    let inst: Vec<u16> = ib.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+    let track_ids: Vec<String> = index.instances.iter().map(|i| i.track_id.clone()).collect();
+    let track: Vec<Option<usize>> = inst
+        .iter()
+        .map(|k| if *k == 0 { None } else { index.instances.iter().position(|i| i.instance == *k) })
+        .collect();
+    Ok(Some(GroundTruth { normal: resample(&normals, sw, sh, w, h), track: resample(&track, sw, sh, w, h), track_ids }))
+}

@@ -1,0 +1,162 @@
+//! The model directory, the stage boundary between Reconstruct and Re-render:
+//!
+//! ```text
+//! <model>/model.json          what was trained on what: format, scene, config, split, counts, timings
+//! <model>/background.ply      standard 3DGS PLY, world frame (opens in other 3DGS viewers)
+//! <model>/actors/<n>.ply      one standard PLY per tracked object, in its box frame
+//! <model>/sky.f32             the sky cube map: 6 * res * res * 3 little-endian f32
+//! <model>/sky.png             the cube map as a viewable cross
+//! <model>/config.toml         the effective training config (a resumed run must match it)
+//! <model>/checkpoint.bin      the full training state (`checkpoint`)
+//! ```
+//! Every file is written to a temporary name and renamed.
+
+use crate::config::TrainConfig;
+use crate::error::ReconError;
+use crate::init::InitReport;
+use crate::loss::LossParts;
+use crate::model::{Actor, SceneModel};
+use crate::sky::Sky;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub const MODEL_FORMAT: &str = "carla-gs-model/1";
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ActorRecord {
+    pub track_id: String,
+    pub file: String,
+    pub gaussians: usize,
+    pub size_lwh: [f64; 3],
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ModelRecord {
+    pub format: String,
+    pub scene_name: String,
+    /// The scene directory trained on, as given.
+    pub scene_dir: PathBuf,
+    pub backend: String,
+    pub iterations: usize,
+    pub held_out_every: usize,
+    pub scale: f64,
+    pub extent: f64,
+    pub background_file: String,
+    pub background_gaussians: usize,
+    pub actors: Vec<ActorRecord>,
+    pub sky_res: usize,
+    pub train_seconds: f64,
+    pub iterations_per_second: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub init: Option<serde_json::Value>,
+    pub last_loss: LossParts,
+}
+
+/// A file name for a track id (ids may hold any character).
+pub fn actor_file(track_id: &str) -> String {
+    let clean: String =
+        track_id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
+    format!("actors/{clean}-{:08x}.ply", crc32c::crc32c(track_id.as_bytes()))
+}
+
+fn ply_err(file: &Path) -> impl Fn(splat::ply::PlyError) -> ReconError + '_ {
+    move |e| ReconError::Ply { file: file.to_path_buf(), detail: e.to_string() }
+}
+
+fn write_sky(dir: &Path, sky: &Sky) -> Result<(), ReconError> {
+    let bytes: Vec<u8> = sky.texels.iter().flat_map(|v| (*v as f32).to_le_bytes()).collect();
+    scene::write_file_atomic(&dir.join("sky.f32"), &bytes)?;
+    // Cross layout: 4 x 3 faces.
+    let r = sky.res;
+    let mut img = image::RgbImage::new(4 * r as u32, 3 * r as u32);
+    let place = [(2, 1), (0, 1), (1, 1), (3, 1), (1, 0), (1, 2)];
+    for (face, (fx, fy)) in place.iter().enumerate() {
+        for v in 0..r {
+            for u in 0..r {
+                let i = (face * r * r + v * r + u) * 3;
+                let px = std::array::from_fn(|c| (sky.texels[i + c].clamp(0.0, 1.0) * 255.0).round() as u8);
+                img.put_pixel((fx * r + u) as u32, (fy * r + v) as u32, image::Rgb(px));
+            }
+        }
+    }
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| ReconError::Image { file: dir.join("sky.png"), detail: e.to_string() })?;
+    scene::write_file_atomic(&dir.join("sky.png"), &png)?;
+    Ok(())
+}
+
+/// Writes the model files and `model.json` (which is written last).
+pub fn write_model(
+    dir: &Path,
+    model: &SceneModel,
+    record: &mut ModelRecord,
+    cfg: &TrainConfig,
+    init: Option<&InitReport>,
+) -> Result<(), ReconError> {
+    std::fs::create_dir_all(dir.join("actors")).map_err(crate::error::io(dir))?;
+    let bg = dir.join("background.ply");
+    splat::ply::write_ply(&bg, &model.background).map_err(ply_err(&bg))?;
+    record.actors.clear();
+    for a in &model.actors {
+        let file = actor_file(&a.track_id);
+        let p = dir.join(&file);
+        splat::ply::write_ply(&p, &a.gaussians).map_err(ply_err(&p))?;
+        record.actors.push(ActorRecord {
+            track_id: a.track_id.clone(),
+            file,
+            gaussians: a.gaussians.len(),
+            size_lwh: a.size_lwh,
+        });
+    }
+    write_sky(dir, &model.sky)?;
+    record.format = MODEL_FORMAT.into();
+    record.background_file = "background.ply".into();
+    record.background_gaussians = model.background.len();
+    record.sky_res = model.sky.res;
+    if let Some(i) = init {
+        record.init = serde_json::to_value(i).ok();
+    }
+    let toml = toml::to_string(cfg).map_err(|e| ReconError::Config(e.to_string()))?;
+    scene::write_file_atomic(&dir.join("config.toml"), toml.as_bytes())?;
+    scene::format::write_json_pretty(&dir.join("model.json"), record)?;
+    Ok(())
+}
+
+/// Reads a model directory back.
+pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
+    let file = dir.join("model.json");
+    let record: ModelRecord = scene::format::read_json(&file)?;
+    if record.format != MODEL_FORMAT {
+        return Err(ReconError::Format {
+            file,
+            detail: format!("format {:?}, expected {MODEL_FORMAT:?}", record.format),
+        });
+    }
+    let bg_path = dir.join(&record.background_file);
+    let background = splat::ply::read_ply(&bg_path).map_err(ply_err(&bg_path))?;
+    let mut actors = Vec::new();
+    for a in &record.actors {
+        let p = dir.join(&a.file);
+        let g = splat::ply::read_ply(&p).map_err(ply_err(&p))?;
+        actors.push(Actor { track_id: a.track_id.clone(), size_lwh: a.size_lwh, gaussians: g });
+    }
+    let sky_path = dir.join("sky.f32");
+    let bytes = std::fs::read(&sky_path).map_err(crate::error::io(&sky_path))?;
+    let want = 6 * record.sky_res * record.sky_res * 3;
+    if bytes.len() != want * 4 {
+        return Err(ReconError::Format {
+            file: sky_path,
+            detail: format!("{} bytes, expected {}", bytes.len(), want * 4),
+        });
+    }
+    let texels = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect();
+    Ok((SceneModel { background, actors, sky: Sky { res: record.sky_res, texels } }, record))
+}
+
+/// The training config saved beside a model.
+pub fn load_config(dir: &Path) -> Result<TrainConfig, ReconError> {
+    let p = dir.join("config.toml");
+    let text = std::fs::read_to_string(&p).map_err(crate::error::io(&p))?;
+    TrainConfig::from_toml(&text).map_err(|e| ReconError::Format { file: p, detail: e })
+}

@@ -1,0 +1,146 @@
+//! A whole training run for `carla-gs train`: load the scene and its priors, make the views,
+//! initialise (or resume from the checkpoint), iterate with a progress bar showing loss and PSNR,
+//! checkpoint at intervals (crash-safe), and write the model directory.
+
+use crate::backend::Backend;
+use crate::checkpoint::{self, TrainState};
+use crate::config::TrainConfig;
+use crate::data::{load_views, PriorLoader, View};
+use crate::error::ReconError;
+use crate::init::{initialise, scene_extent, InitReport};
+use crate::loss::LossParts;
+use crate::model_io::{load_config, write_model, ModelRecord};
+use crate::train::Trainer;
+use indicatif::ProgressBar;
+use scene::Scene;
+use std::path::Path;
+use std::time::Instant;
+
+pub struct TrainRequest<'a> {
+    pub scene_dir: &'a Path,
+    pub out_dir: &'a Path,
+    pub cfg: TrainConfig,
+    pub resume: bool,
+    /// Stop (with a checkpoint) after this iteration, as if killed there (tests, budgets).
+    pub stop_after: Option<usize>,
+    pub priors: &'a PriorLoader<'a>,
+}
+
+#[derive(Clone, Debug)]
+pub struct TrainSummary {
+    pub iterations_done: usize,
+    pub seconds: f64,
+    pub iterations_per_second: f64,
+    pub gaussians: usize,
+    pub last_loss: LossParts,
+    /// Mean training-view PSNR over the last 100 iterations.
+    pub recent_psnr: f64,
+    pub views_train: usize,
+    pub views_held_out: usize,
+}
+
+/// Loads the scene's views at the config's scale.
+pub fn prepare(scene_dir: &Path, cfg: &TrainConfig, priors: &PriorLoader) -> Result<(Scene, Vec<View>), ReconError> {
+    let scene = scene::load_scene(scene_dir)?;
+    let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, priors, &ProgressBar::hidden())?;
+    if views.iter().all(|v| v.held_out) {
+        return Err(ReconError::Input(format!("{}: every view is held out; nothing to train on", scene_dir.display())));
+    }
+    Ok((scene, views))
+}
+
+pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) -> Result<TrainSummary, ReconError> {
+    let cfg = req.cfg.clone();
+    cfg.validate().map_err(ReconError::Config)?;
+    std::fs::create_dir_all(req.out_dir).map_err(crate::error::io(req.out_dir))?;
+    let ckpt_path = req.out_dir.join("checkpoint.bin");
+    if req.resume {
+        let saved = load_config(req.out_dir)?;
+        if saved != cfg {
+            return Err(ReconError::Config(format!(
+                "--resume: the settings differ from those in {} (a resumed run must use the same config)",
+                req.out_dir.join("config.toml").display()
+            )));
+        }
+    }
+    let (scene, views) = prepare(req.scene_dir, &cfg, req.priors)?;
+    let extent = scene_extent(&views);
+    let (state, init): (TrainState, Option<InitReport>) = if req.resume {
+        (checkpoint::load(&ckpt_path)?, None)
+    } else {
+        let (model, report) =
+            initialise(req.scene_dir, &scene, &views, &cfg.init, cfg.sh_degree, cfg.sky_res, cfg.seed)?;
+        tracing::info!(?report, "initialised");
+        (Trainer::<B>::fresh_state(model), Some(report))
+    };
+    let mut record = ModelRecord {
+        format: String::new(),
+        scene_name: scene.name.clone(),
+        scene_dir: req.scene_dir.to_path_buf(),
+        backend: backend.name().into(),
+        iterations: 0,
+        held_out_every: cfg.held_out_every,
+        scale: cfg.scale,
+        extent,
+        background_file: String::new(),
+        background_gaussians: 0,
+        actors: vec![],
+        sky_res: cfg.sky_res,
+        train_seconds: 0.0,
+        iterations_per_second: 0.0,
+        init: None,
+        last_loss: LossParts::default(),
+    };
+    // The config is written before the first step so an interrupted run can be resumed.
+    let toml = toml::to_string(&cfg).map_err(|e| ReconError::Config(e.to_string()))?;
+    scene::write_file_atomic(&req.out_dir.join("config.toml"), toml.as_bytes())?;
+    let mut trainer = Trainer::new(&scene, &views, cfg.clone(), backend, state, extent);
+    let start_it = trainer.state.next_iteration;
+    let end = req.stop_after.map_or(cfg.iterations, |s| s.min(cfg.iterations));
+    progress.set_length(cfg.iterations as u64);
+    progress.set_position(start_it as u64);
+    let t0 = Instant::now();
+    let mut recent = std::collections::VecDeque::new();
+    let mut last = LossParts::default();
+    while trainer.state.next_iteration < end {
+        let rep = trainer.step();
+        last = rep.loss;
+        recent.push_back(rep.psnr);
+        if recent.len() > 100 {
+            recent.pop_front();
+        }
+        let n = trainer.state.next_iteration;
+        if n % 10 == 0 || n == end {
+            progress.set_message(format!(
+                "loss {:.4} psnr {:.2} dB  {} gaussians",
+                rep.loss.total, rep.psnr, rep.gaussians
+            ));
+        }
+        progress.set_position(n as u64);
+        if let Some(c) = rep.densified {
+            tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
+        }
+        if cfg.checkpoint_interval > 0 && n % cfg.checkpoint_interval == 0 && n < end {
+            checkpoint::save(&ckpt_path, &trainer.state)?;
+        }
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    checkpoint::save(&ckpt_path, &trainer.state)?;
+    let done = trainer.state.next_iteration;
+    let ran = done - start_it;
+    record.iterations = done;
+    record.train_seconds = seconds;
+    record.iterations_per_second = ran as f64 / seconds.max(1e-9);
+    record.last_loss = last;
+    write_model(req.out_dir, &trainer.state.model, &mut record, &cfg, init.as_ref())?;
+    Ok(TrainSummary {
+        iterations_done: done,
+        seconds,
+        iterations_per_second: record.iterations_per_second,
+        gaussians: trainer.state.model.gaussian_count(),
+        last_loss: last,
+        recent_psnr: recent.iter().sum::<f64>() / recent.len().max(1) as f64,
+        views_train: views.iter().filter(|v| !v.held_out).count(),
+        views_held_out: views.iter().filter(|v| v.held_out).count(),
+    })
+}
