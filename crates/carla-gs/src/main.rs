@@ -42,6 +42,8 @@ enum Command {
     EvalRecon(cmd::recon::EvalArgs),
     /// Render one camera of a trained model at a frame (optionally moved sideways).
     Render(cmd::recon::RenderArgs),
+    /// Table III: train the four geometry-loss settings with one seed and split, score each.
+    Ablate(cmd::recon::AblateArgs),
 }
 
 fn main() -> ExitCode {
@@ -69,6 +71,7 @@ fn main() -> ExitCode {
         Command::Train(a) => cmd::recon::train(a),
         Command::EvalRecon(a) => cmd::recon::eval(a),
         Command::Render(a) => cmd::recon::render(a),
+        Command::Ablate(a) => cmd::recon::ablate(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

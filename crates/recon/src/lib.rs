@@ -6,6 +6,7 @@
 //! photometric loss, Adam and adaptive density control, on any rasterizer `Backend` (the CPU
 //! reference today). See docs/recon.md.
 
+pub mod ablate;
 pub mod backend;
 pub mod camera;
 pub mod checkpoint;

@@ -5,6 +5,7 @@
 
 use crate::config::LearningRates;
 use crate::model::{zeros_like, SceneModel};
+use rayon::prelude::*;
 use splat::Gaussians;
 
 pub const BETA1: f64 = 0.9;
@@ -54,10 +55,24 @@ impl Step {
         *p -= lr * mh / (vh.sqrt() + EPS);
     }
 
+    /// Element-wise over the slices, in parallel chunks (each element is independent, so the
+    /// result does not depend on the thread count).
     fn slice(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: f64) {
-        for i in 0..p.len() {
-            self.apply(&mut p[i], g[i], &mut m[i], &mut v[i], lr);
-        }
+        self.slice_with(p, g, m, v, &|_| lr);
+    }
+
+    fn slice_with(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: &(dyn Fn(usize) -> f64 + Sync)) {
+        const CHUNK: usize = 1 << 14;
+        p.par_chunks_mut(CHUNK)
+            .zip(m.par_chunks_mut(CHUNK))
+            .zip(v.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, ((p, m), v))| {
+                let base = c * CHUNK;
+                for i in 0..p.len() {
+                    self.apply(&mut p[i], g[base + i], &mut m[i], &mut v[i], lr(base + i));
+                }
+            });
     }
 }
 
@@ -99,10 +114,8 @@ pub fn adam_step(
         );
         s.slice(&mut p.opacity_logits, &g.opacity_logits, &mut m.opacity_logits, &mut v.opacity_logits, lr.opacity);
         let k = p.coeffs() * 3;
-        for j in 0..p.sh.len() {
-            let rate = if j % k < 3 { lr.sh_dc } else { lr.sh_rest };
-            s.apply(&mut p.sh[j], g.sh[j], &mut m.sh[j], &mut v.sh[j], rate);
-        }
+        let rate = |j: usize| if j % k < 3 { lr.sh_dc } else { lr.sh_rest };
+        s.slice_with(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, &rate);
     }
     s.slice(&mut model.sky.texels, sky_grad, &mut state.sky_m, &mut state.sky_v, lr.sky);
 }

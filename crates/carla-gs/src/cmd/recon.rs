@@ -185,3 +185,46 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     );
     Ok(())
 }
+
+#[derive(clap::Args)]
+pub struct AblateArgs {
+    scene: PathBuf,
+    #[arg(long)]
+    iters: Option<usize>,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    scale: Option<f64>,
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
+    let mut cfg = load_config(a.config.as_deref())?;
+    if let Some(n) = a.iters {
+        cfg.iterations = n;
+    }
+    if let Some(s) = a.scale {
+        cfg.scale = s;
+    }
+    if let Some(s) = a.seed {
+        cfg.seed = s;
+    }
+    cfg.validate().map_err(|e| anyhow::anyhow!("settings: {e}"))?;
+    let priors = priors_of(&a.scene)?;
+    let bar = |name: &str| {
+        let pb = ProgressBar::new(0);
+        pb.set_style(ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} ({eta}) {msg}").expect("valid template"));
+        pb.set_prefix(name.to_string());
+        pb
+    };
+    let rows = recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?;
+    let md = recon::ablate::markdown(&rows, cfg.iterations);
+    scene::write_file_atomic(&a.out.join("table3.md"), md.as_bytes())?;
+    scene::format::write_json_pretty(&a.out.join("table3.json"), &rows)?;
+    print!("{md}");
+    println!("-> {}", a.out.join("table3.md").display());
+    Ok(())
+}
