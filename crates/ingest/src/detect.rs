@@ -29,6 +29,10 @@ pub enum Expect {
     Auto,
     Frame,
     Scenario,
+    /// A KITTI odometry sequence folder (`kitti`).
+    KittiOdometry,
+    /// An instant-ngp / nerfstudio `transforms.json` folder (`transforms_json`).
+    TransformsJson,
 }
 
 /// Decodes a record; the error says why neither kind fits.
@@ -49,5 +53,6 @@ pub fn decode_record(data: &[u8], expect: Expect) -> Result<Decoded, String> {
         Expect::Frame => frame(),
         Expect::Scenario => scenario(),
         Expect::Auto => frame().or_else(|a| scenario().map_err(|b| format!("{a}; {b}"))),
+        Expect::KittiOdometry | Expect::TransformsJson => Err("folder formats are not TFRecord records".to_string()),
     }
 }

@@ -27,6 +27,12 @@ pub enum IngestError {
     MixedKinds { file: PathBuf, found: &'static str, expected: &'static str },
     #[error("duplicate frame timestamp {timestamp_micros} us: {first} and {second}")]
     DuplicateTimestamp { timestamp_micros: i64, first: String, second: String },
+    #[error("{file}: line {line}: {message}")]
+    Line { file: PathBuf, line: usize, message: String },
+    #[error("{file}: `{field}`: {message}")]
+    Field { file: PathBuf, field: String, message: String },
+    #[error("{file}: {message}")]
+    Content { file: PathBuf, message: String },
     #[error(transparent)]
     Scene(#[from] scene::SceneError),
 }
@@ -39,4 +45,9 @@ pub(crate) fn invalid(
     message: impl Into<String>,
 ) -> IngestError {
     IngestError::Invalid { file: file.to_path_buf(), index, field: field.into(), message: message.into() }
+}
+
+/// Shorthand for a problem with a whole file or folder (missing image, count mismatch).
+pub(crate) fn content(file: impl Into<PathBuf>, message: impl Into<String>) -> IngestError {
+    IngestError::Content { file: file.into(), message: message.into() }
 }

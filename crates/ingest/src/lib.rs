@@ -1,16 +1,21 @@
-//! `ingest`: Waymo Open Dataset logs to carla-gs scenes.
+//! `ingest`: driving logs and photo sets to carla-gs scenes.
 //!
 //! Inputs are TFRecord files of Waymo v1 perception `Frame`s (one segment, possibly split over
-//! several files) or of WOMD `Scenario`s (one scene per record). The kind is detected from the
-//! content (`detect`) or forced. Output goes to a staging directory that is renamed into place
+//! several files) or of WOMD `Scenario`s (one scene per record), or one folder: a KITTI odometry
+//! sequence (`kitti`) or an instant-ngp / nerfstudio `transforms.json` set (`transforms_json`).
+//! The kind is detected from the content (`detect`, `folder`) or forced. Output goes to a staging directory that is renamed into place
 //! only when everything converted and validated, so bad input never leaves a partial scene.
 
 pub mod detect;
 pub mod error;
+pub mod folder;
+pub mod kitti;
 pub mod proto;
 pub mod range_image;
 pub mod shared;
 pub mod tfrecord;
+pub mod transforms_json;
+pub mod undistort;
 pub mod waymo_frame;
 pub mod womd;
 
@@ -38,6 +43,13 @@ fn convert(
     staging: Option<&Path>,
     progress: &ProgressBar,
 ) -> Result<Vec<Scene>, IngestError> {
+    if let Some(dir) = folder::folder_of(inputs, expect) {
+        return Ok(vec![folder::read_folder(&dir, expect, staging, progress)?]);
+    }
+    if let Some(e @ (Expect::KittiOdometry | Expect::TransformsJson)) = Some(expect) {
+        let first = inputs.first().cloned().unwrap_or_default();
+        return Err(error::content(first, format!("{e:?} input must be one folder")));
+    }
     let total: u64 = inputs.iter().filter_map(|p| std::fs::metadata(p).ok()).map(|m| m.len()).sum();
     progress.set_length(total);
     let mut collected = Collected::Nothing;

@@ -28,3 +28,15 @@ pub fn womd_scenes() -> Option<Vec<scene::Scene>> {
     }
     Some(out)
 }
+
+/// `../shared/data/<rel>` relative to the workspace root (a file or folder), if it is there
+/// (prints a SKIP line otherwise).
+pub fn data_path(rel: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(rel);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("SKIP: {} not found (shared data folder absent)", p.display());
+        None
+    }
+}

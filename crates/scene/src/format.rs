@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! <scene>/scene.json         versioned description ("format": "carla-gs-scene/1")
-//! <scene>/images/<frame>_<CAMERA>.jpg   original JPEG bytes, never re-encoded
+//! <scene>/images/<frame>_<CAMERA>.jpg|png   camera images (JPEG or PNG, colour or grey)
 //! <scene>/lidar/<frame>.bin  little-endian f32 x y z intensity per point, ego frame
 //! ```
 //!
@@ -19,9 +19,14 @@ pub const SCENE_FILE: &str = "scene.json";
 pub const IMAGES_DIR: &str = "images";
 pub const LIDAR_DIR: &str = "lidar";
 
-/// The relative path of a frame's image for a camera.
+/// The relative path of a frame's JPEG image for a camera.
 pub fn image_rel_path(frame: usize, camera: &str) -> String {
-    format!("{IMAGES_DIR}/{frame:06}_{camera}.jpg")
+    image_rel_path_ext(frame, camera, "jpg")
+}
+
+/// The relative path of a frame's image for a camera with the file extension `ext` (`jpg`, `png`).
+pub fn image_rel_path_ext(frame: usize, camera: &str, ext: &str) -> String {
+    format!("{IMAGES_DIR}/{frame:06}_{camera}.{ext}")
 }
 
 /// The relative path of a frame's LiDAR sweep.

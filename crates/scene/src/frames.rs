@@ -5,6 +5,13 @@
 //!   `world_from_ego` is Waymo's frame `pose`.
 //! * **Waymo camera**: x forward (optical axis), y left, z up. Calibrations give `ego_from_camera`.
 //! * **OpenCV camera** (`cv`): x right, y down, z forward. Projection and rendering use it.
+//!   KITTI's rectified cameras use these axes (`waymo_camera_from_kitti_camera`).
+//! * **OpenGL / NeRF camera** (`opengl`): x right, y up, z backward (instant-ngp, nerfstudio
+//!   `transforms.json`).
+//! * **KITTI world**: the left camera at frame 0 (x right, y down, z forward); `world_from_kitti_world`
+//!   turns it z-up with the origin on the road below that camera.
+//! * **NeRF world** (instant-ngp `transforms.json`): already z-up (colmap2nerf rotates the mean
+//!   camera up to +z); `world_from_nerf_world` is the identity, units are the file's own.
 //! * **Box**: a tracked object's frame: origin at the box centre, x along its length (heading),
 //!   y left, z up. `world_from_box` comes from the centre and the heading (yaw about world z).
 //!
@@ -29,6 +36,40 @@ pub fn cv_from_waymo_camera() -> Transform3 {
 /// `waymo_camera_from_cv`, the inverse of [`cv_from_waymo_camera`].
 pub fn waymo_camera_from_cv() -> Transform3 {
     cv_from_waymo_camera().inverse()
+}
+
+/// `waymo_camera_from_kitti_camera`: KITTI camera axes are OpenCV's (x right, y down, z forward).
+pub fn waymo_camera_from_kitti_camera() -> Transform3 {
+    waymo_camera_from_cv()
+}
+
+/// KITTI's documented height of the left camera above the road (m).
+pub const KITTI_CAMERA_HEIGHT_M: f64 = 1.65;
+
+/// `world_from_kitti_world`: KITTI odometry's world is the left camera at frame 0 (OpenCV axes,
+/// y down). Our world has x = KITTI z (forward at frame 0), y = -KITTI x (left), z = -KITTI y (up)
+/// and its origin `camera_height_m` below that camera, so the road at frame 0 is near z = 0.
+pub fn world_from_kitti_world(camera_height_m: f64) -> Transform3 {
+    Transform3::from_rotation_translation(waymo_camera_from_cv().rotation(), DVec3::new(0.0, 0.0, camera_height_m))
+}
+
+/// Rotation taking OpenGL/NeRF camera axes (x right, y up, z backward) to Waymo camera axes
+/// (x forward, y left, z up): `x_w = -z_gl`, `y_w = -x_gl`, `z_w = y_gl`.
+pub fn waymo_camera_from_opengl_camera() -> Transform3 {
+    Transform3::from_rotation_translation(
+        DMat3::from_cols(
+            DVec3::new(0.0, -1.0, 0.0), // image of gl +x (right)
+            DVec3::new(0.0, 0.0, 1.0),  // image of gl +y (up)
+            DVec3::new(-1.0, 0.0, 0.0), // image of gl +z (backward)
+        ),
+        DVec3::ZERO,
+    )
+}
+
+/// `world_from_nerf_world`: instant-ngp / nerfstudio worlds written by colmap2nerf are z-up
+/// already, so this is the identity (kept as a named step; units stay the file's own).
+pub fn world_from_nerf_world() -> Transform3 {
+    Transform3::IDENTITY
 }
 
 /// `world_from_box` for a box with centre `center` and heading `heading` (yaw about world z).
@@ -123,6 +164,31 @@ mod tests {
         // The box's front (+x) points along world +y after a 90 degree heading.
         let front = wb.transform_point(DVec3::new(2.0, 0.0, 0.0));
         assert!((front - DVec3::new(5.0, 2.0, 0.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn kitti_axes_land_z_up() {
+        let w = world_from_kitti_world(KITTI_CAMERA_HEIGHT_M);
+        // 10 m ahead of the frame-0 camera (KITTI +z) is world +x at camera height.
+        assert!((w.transform_point(DVec3::new(0.0, 0.0, 10.0)) - DVec3::new(10.0, 0.0, 1.65)).length() < 1e-12);
+        // The road 1.65 m below the camera (KITTI +y is down) is world z = 0.
+        assert!(w.transform_point(DVec3::new(0.0, 1.65, 0.0)).length() < 1e-12);
+        // KITTI +x (right) is world -y.
+        assert!((w.transform_vector(DVec3::X) - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
+        let c = waymo_camera_from_kitti_camera();
+        assert!((c.transform_point(DVec3::new(1.0, 2.0, 5.0)) - DVec3::new(5.0, -1.0, -2.0)).length() < 1e-12);
+        assert!((c.rotation().determinant() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn opengl_camera_axes() {
+        let r = waymo_camera_from_opengl_camera();
+        // OpenGL cameras look down -z: that is Waymo +x; up is +y in both (Waymo z).
+        assert!((r.transform_vector(DVec3::new(0.0, 0.0, -1.0)) - DVec3::X).length() < 1e-12);
+        assert!((r.transform_vector(DVec3::Y) - DVec3::Z).length() < 1e-12);
+        assert!((r.transform_vector(DVec3::X) - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
+        assert!((r.rotation().determinant() - 1.0).abs() < 1e-12);
+        assert_eq!(world_from_nerf_world(), Transform3::IDENTITY);
     }
 
     #[test]

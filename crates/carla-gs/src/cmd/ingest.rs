@@ -1,4 +1,5 @@
-//! `carla-gs ingest <input>... --out <scene_dir>`
+//! `carla-gs ingest <input>... --out <scene_dir>`: TFRecord files or one folder (KITTI odometry,
+//! `transforms.json`).
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -8,11 +9,16 @@ pub enum Format {
     Waymo,
     /// Waymo Open Motion Dataset `Scenario` records.
     Womd,
+    /// A KITTI odometry sequence folder (image_0/, image_1/, calib.txt, poses.txt, times.txt).
+    KittiOdometry,
+    /// An instant-ngp / nerfstudio folder with transforms.json.
+    TransformsJson,
 }
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// TFRecord files (one Waymo segment, or WOMD scenario files).
+    /// TFRecord files (one Waymo segment, or WOMD scenario files), or one folder (KITTI odometry
+    /// sequence, transforms.json photo set).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output scene directory (several WOMD scenarios: one sub-directory per scenario id).
@@ -31,8 +37,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => ingest::Expect::Auto,
         Some(Format::Waymo) => ingest::Expect::Frame,
         Some(Format::Womd) => ingest::Expect::Scenario,
+        Some(Format::KittiOdometry) => ingest::Expect::KittiOdometry,
+        Some(Format::TransformsJson) => ingest::Expect::TransformsJson,
     };
-    let pb = super::progress::bytes_bar("ingest");
+    let pb = if ingest::folder::folder_of(&a.inputs, expect).is_some() {
+        super::progress::count_bar("ingest images")
+    } else {
+        super::progress::bytes_bar("ingest")
+    };
     let written =
         ingest::ingest(&a.inputs, &a.out, expect, a.force, &pb).context("ingest failed; nothing was written")?;
     pb.finish_and_clear();
