@@ -21,7 +21,7 @@ fn ok(out: Output) -> String {
 }
 
 const CONFIG: &str = "iterations = 30\nscale = 1.0\ncheckpoint_interval = 5\nsky_res = 4\n\
-[densify]\nfrom = 4\ninterval = 5\nuntil = 25\nopacity_reset_interval = 20\n\
+[densify]\nfrom = 0.1\ninterval = 5\nuntil = 0.8\nopacity_reset_every = 0.6\n\
 [init]\nmax_points = 3000\nactor_points = 200\n";
 
 #[test]

@@ -45,14 +45,17 @@ pub struct LearningRates {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct DensifyConfig {
-    pub from: usize,
-    pub until: usize,
+    /// Density control runs from `from x iterations` to `until x iterations` (3DGS: 500 and
+    /// 15000 of 30000), so a short CPU run keeps 3DGS's proportions.
+    pub from: f64,
+    pub until: f64,
     pub interval: usize,
     /// Average screen-space (NDC) gradient above which a Gaussian is cloned or split.
     pub grad_threshold: f64,
     /// Split (rather than clone) when the largest scale exceeds this fraction of the scene extent.
     pub percent_dense: f64,
-    pub opacity_reset_interval: usize,
+    /// Opacities are reset every `opacity_reset_every x iterations` (3DGS: 3000 of 30000).
+    pub opacity_reset_every: f64,
     pub prune_opacity: f64,
     /// After the first opacity reset: prune Gaussians wider than this on screen (pixels)...
     pub max_screen_size: f64,
@@ -114,12 +117,12 @@ impl Default for LearningRates {
 impl Default for DensifyConfig {
     fn default() -> Self {
         DensifyConfig {
-            from: 300,
-            until: 2000,
+            from: 0.02,
+            until: 0.5,
             interval: 100,
             grad_threshold: 2e-4,
             percent_dense: 0.01,
-            opacity_reset_interval: 1000,
+            opacity_reset_every: 0.1,
             prune_opacity: 0.005,
             max_screen_size: 60.0,
             max_world_fraction: 0.1,
@@ -162,10 +165,20 @@ impl TrainConfig {
         if self.densify.interval == 0 || self.sh_degree_interval == 0 {
             return Err("densify.interval and sh_degree_interval must be positive".into());
         }
+        let d = &self.densify;
+        if !(0.0..=1.0).contains(&d.from) || !(0.0..=1.0).contains(&d.until) || !(0.0..=1.0).contains(&d.opacity_reset_every) {
+            return Err("densify.from, densify.until and densify.opacity_reset_every are fractions of the iterations (0 to 1)".into());
+        }
         if self.sky_res == 0 {
             return Err("sky_res must be positive".into());
         }
         Ok(())
+    }
+
+    /// The densification window and opacity-reset period in iterations.
+    pub fn densify_schedule(&self) -> (usize, usize, usize) {
+        let at = |f: f64| (f * self.iterations as f64).round() as usize;
+        (at(self.densify.from), at(self.densify.until), at(self.densify.opacity_reset_every))
     }
 
     /// The SH degree drawn at iteration `it` (0-based).

@@ -149,7 +149,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
                 .find(|p| wi >= p.start && wi < p.start + p.len)
                 .map(|p| (p.actor.map_or(0, |a| a + 1), wi - p.start))
         };
-        let densifying = it < self.cfg.densify.until;
+        let densifying = it < self.cfg.densify_schedule().1;
         for st in self.state.stats.iter_mut().zip(self.state.model.sets()) {
             st.0.fit(st.1.len());
         }
@@ -185,13 +185,14 @@ impl<'a, B: Backend> Trainer<'a, B> {
     /// The 3DGS schedule on 1-based iteration `n`.
     fn density_control(&mut self, n: usize) -> Option<Counts> {
         let d = self.cfg.densify.clone();
-        if n >= d.until {
+        let (from, until, reset) = self.cfg.densify_schedule();
+        if n >= until {
             return None;
         }
         let mut out = None;
-        if n > d.from && n % d.interval == 0 {
+        if n > from && n % d.interval == 0 {
             let grow = self.state.model.gaussian_count() < d.max_gaussians;
-            let prune_big = n > d.opacity_reset_interval;
+            let prune_big = reset > 0 && n > reset;
             let mut total = Counts::default();
             let st = &mut self.state;
             let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
@@ -220,7 +221,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             }
             out = Some(total);
         }
-        if d.opacity_reset_interval > 0 && n % d.opacity_reset_interval == 0 {
+        if reset > 0 && n % reset == 0 {
             let st = &mut self.state;
             let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
             reset_opacity(&mut sets, &mut st.adam);

@@ -17,10 +17,10 @@ fn synth_scene(dir: &Path) -> std::path::PathBuf {
 
 fn small_config() -> TrainConfig {
     let mut cfg = TrainConfig { iterations: 24, scale: 1.0, checkpoint_interval: 8, sh_degree_interval: 8, ..Default::default() };
-    cfg.densify.from = 4;
+    cfg.densify.from = 0.15;
     cfg.densify.interval = 5;
-    cfg.densify.until = 20;
-    cfg.densify.opacity_reset_interval = 15;
+    cfg.densify.until = 0.8;
+    cfg.densify.opacity_reset_every = 0.6;
     cfg.init.max_points = 3000;
     cfg.init.actor_points = 200;
     cfg.sky_res = 4;
