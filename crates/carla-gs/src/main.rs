@@ -36,6 +36,8 @@ enum Command {
     Synth(cmd::synth::Args),
     /// Measure an executed corner case (TTC, Success, Zone Hit, comfort).
     Metrics(cmd::metrics::Args),
+    /// Geometry priors per image (depth, normals, ground/object masks) under <scene>/priors/.
+    Priors(cmd::priors::Args),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +62,7 @@ fn main() -> ExitCode {
         Command::RenderPly(a) => cmd::splat::render(a),
         Command::BenchSplat(a) => cmd::splat::bench(a),
         Command::Synth(a) => cmd::synth::run(a),
+        Command::Priors(a) => cmd::priors::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
