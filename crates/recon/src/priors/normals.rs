@@ -33,7 +33,7 @@ pub fn normals(depth: &[f32], rays: &Rays) -> Vec<[f32; 3]> {
             let dv = rays.point(t, z[3]) - rays.point(b, z[4]);
             let mut n = du.cross(dv);
             let len = n.length();
-            if !(len > 0.0) {
+            if len <= 0.0 || len.is_nan() {
                 return [0.0; 3];
             }
             n /= len;
