@@ -44,6 +44,8 @@ enum Command {
     Render(cmd::recon::RenderArgs),
     /// Table III: train the four geometry-loss settings with one seed and split, score each.
     Ablate(cmd::recon::AblateArgs),
+    /// Geometry priors per image (depth, normals, ground/object masks) under <scene>/priors/.
+    Priors(cmd::priors::Args),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +74,7 @@ fn main() -> ExitCode {
         Command::EvalRecon(a) => cmd::recon::eval(a),
         Command::Render(a) => cmd::recon::render(a),
         Command::Ablate(a) => cmd::recon::ablate(a),
+        Command::Priors(a) => cmd::priors::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

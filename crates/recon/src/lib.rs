@@ -2,7 +2,8 @@
 //! a static background in the world frame, one Gaussian model per tracked object in its box frame
 //! (placed at time `t` by the interpolated track pose), and a learnable sky cube map composited
 //! behind them. Training uses the paper's geometry constraints (flattening, normal and
-//! geometry-consistency losses under the ground+object supervision mask) on top of the 3DGS
+//! geometry-consistency losses under the ground+object supervision mask, from the per-image priors
+//! of `priors`) on top of the 3DGS
 //! photometric loss, Adam and adaptive density control, on any rasterizer `Backend` (the CPU
 //! reference today). See docs/recon.md.
 
@@ -24,9 +25,11 @@ pub mod model;
 pub mod model_io;
 pub mod optim;
 pub mod pose;
+pub mod priors;
 pub mod session;
 pub mod sh_rotate;
 pub mod sky;
+pub mod targets;
 pub mod ssim;
 pub mod train;
 pub mod view;

@@ -4,6 +4,7 @@ pub mod ingest;
 pub mod inspect;
 pub mod llm;
 pub mod metrics;
+pub mod priors;
 pub mod progress;
 pub mod reason;
 pub mod recon;

@@ -51,8 +51,12 @@ pub fn load_config(config: Option<&Path>) -> anyhow::Result<TrainConfig> {
 }
 
 /// The scene's priors as training targets (none until `carla-gs priors` has run).
-pub fn priors_of(_scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> {
-    Ok(Box::new(|_v| Ok(None)))
+pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> {
+    let loader = recon::targets::prior_loader(scene_dir)?;
+    if !scene_dir.join("priors").is_dir() {
+        eprintln!("note: {} has no priors/ (run `carla-gs priors` first): depth, normal and geometry losses are off", scene_dir.display());
+    }
+    Ok(loader)
 }
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {

@@ -1,0 +1,127 @@
+//! `priors/priors.json` (format `carla-gs-priors/1`) and reading the maps back for the trainer:
+//! [`PriorIndex::load`] parses the index, [`PriorIndex::maps`] decodes one image's files.
+
+use super::error::PriorError;
+use super::ground::Plane;
+use super::image_io::{read_gz_f32, read_mask_png};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+pub const PRIORS_DIR: &str = "priors";
+pub const PRIORS_FILE: &str = "priors.json";
+pub const PRIORS_FORMAT: &str = "carla-gs-priors/1";
+
+/// Where an image's depth prior came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DepthSource {
+    Lidar,
+    DepthDir,
+    Stereo,
+    None,
+}
+
+/// File names (relative to `priors/`) of one image's maps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PriorFiles {
+    pub depth: String,
+    pub normal: String,
+    pub ground: String,
+    pub object: String,
+    pub mask: String,
+    pub depth_png: String,
+    pub normal_png: String,
+}
+
+impl PriorFiles {
+    pub fn for_image(frame: usize, camera: &str) -> Self {
+        let f = |s: &str| format!("{frame:06}_{camera}.{s}");
+        Self {
+            depth: f("depth.f32.gz"),
+            normal: f("normal.f32.gz"),
+            ground: f("ground.png"),
+            object: f("object.png"),
+            mask: f("mask.png"),
+            depth_png: f("depth.png"),
+            normal_png: f("normal.png"),
+        }
+    }
+}
+
+/// One image's entry in `priors.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PriorEntry {
+    pub frame: usize,
+    pub camera: String,
+    pub width: usize,
+    pub height: usize,
+    pub depth_source: DepthSource,
+    pub valid_depth_fraction: f64,
+    pub ground_fraction: f64,
+    pub object_fraction: f64,
+    pub mask_fraction: f64,
+    /// The RANSAC ground plane in the ego frame, if one was found.
+    pub ground_plane: Option<Plane>,
+    pub files: PriorFiles,
+}
+
+/// Parsed `priors.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PriorIndex {
+    pub format: String,
+    pub settings: serde_json::Value,
+    pub images: Vec<PriorEntry>,
+}
+
+/// One image's priors, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PriorMaps {
+    pub width: usize,
+    pub height: usize,
+    /// z-depth along the optical axis (m), 0 = none.
+    pub depth: Vec<f32>,
+    /// Unit normal in Waymo camera axes (x forward, y left, z up), `[0, 0, 0]` = none.
+    pub normal: Vec<[f32; 3]>,
+    pub ground: Vec<bool>,
+    pub object: Vec<bool>,
+    pub mask: Vec<bool>,
+}
+
+impl PriorIndex {
+    /// Reads `<scene_dir>/priors/priors.json`; errors name the file (and field).
+    pub fn load(scene_dir: &Path) -> Result<PriorIndex, PriorError> {
+        let file = scene_dir.join(PRIORS_DIR).join(PRIORS_FILE);
+        let index: PriorIndex = scene::format::read_json(&file)?;
+        if index.format != PRIORS_FORMAT {
+            return Err(PriorError::invalid(
+                &file,
+                format!("format is \"{}\", expected \"{PRIORS_FORMAT}\"", index.format),
+            ));
+        }
+        Ok(index)
+    }
+
+    pub fn entry(&self, frame: usize, camera: &str) -> Option<&PriorEntry> {
+        self.images.iter().find(|e| e.frame == frame && e.camera == camera)
+    }
+
+    /// Decodes the maps of one image; `None` when the index has no entry for it.
+    pub fn maps(&self, scene_dir: &Path, frame: usize, camera: &str) -> Result<Option<PriorMaps>, PriorError> {
+        let Some(e) = self.entry(frame, camera) else { return Ok(None) };
+        let dir = scene_dir.join(PRIORS_DIR);
+        let n = e.width * e.height;
+        let depth = read_gz_f32(&dir.join(&e.files.depth), n)?;
+        let normal =
+            read_gz_f32(&dir.join(&e.files.normal), 3 * n)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let mask = |f: &str| read_mask_png(&dir.join(f), e.width, e.height);
+        Ok(Some(PriorMaps {
+            width: e.width,
+            height: e.height,
+            depth,
+            normal,
+            ground: mask(&e.files.ground)?,
+            object: mask(&e.files.object)?,
+            mask: mask(&e.files.mask)?,
+        }))
+    }
+}

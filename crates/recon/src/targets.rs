@@ -1,0 +1,46 @@
+//! From the priors of an image (`carla-gs priors`, full image size, normals in Waymo camera axes)
+//! to training targets at a view's size: depth, normals converted to the OpenCV camera axes the
+//! rasterizer renders in (so the normal loss compares normals in ONE frame), the supervision mask M
+//! and the `L_geo` weights. Maps are sampled at the full-size pixel nearest to each view pixel's
+//! centre (no blending across depth edges).
+
+use crate::data::{PriorLoader, View};
+use crate::error::ReconError;
+use crate::loss::{geo_weights, Targets};
+use crate::priors::{PriorIndex, PriorMaps};
+use std::path::{Path, PathBuf};
+
+fn nearest<T: Copy>(src: &[T], sw: usize, sh: usize, w: usize, h: usize) -> Vec<T> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let sx = (((x as f64 + 0.5) * sw as f64 / w as f64) as usize).min(sw - 1);
+            let sy = (((y as f64 + 0.5) * sh as f64 / h as f64) as usize).min(sh - 1);
+            src[sy * sw + sx]
+        })
+        .collect()
+}
+
+/// Targets (without the image) from prior maps, at `w x h`.
+pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
+    let depth: Vec<f64> = nearest(&p.depth, p.width, p.height, w, h).iter().map(|d| if d.is_finite() && *d > 0.0 { *d as f64 } else { 0.0 }).collect();
+    // Waymo camera (x fwd, y left, z up) -> OpenCV (x right, y down, z fwd).
+    let normal: Vec<[f64; 3]> =
+        nearest(&p.normal, p.width, p.height, w, h).iter().map(|n| [-(n[1] as f64), -(n[2] as f64), n[0] as f64]).collect();
+    let mask = nearest(&p.mask, p.width, p.height, w, h);
+    let geo = geo_weights(&depth, &mask, w, h);
+    Targets { rgb: vec![], depth: Some(depth), normal: Some(normal), mask: Some(mask), geo_weight: Some(geo) }
+}
+
+/// A loader of the scene's priors for `load_views`; with no `priors/` directory, views get none.
+pub fn prior_loader(scene_dir: &Path) -> Result<Box<PriorLoader<'static>>, ReconError> {
+    if !scene_dir.join("priors").join("priors.json").is_file() {
+        return Ok(Box::new(|_v: &View| Ok(None)));
+    }
+    let index = PriorIndex::load(scene_dir).map_err(|e| ReconError::Input(e.to_string()))?;
+    let dir: PathBuf = scene_dir.to_path_buf();
+    Ok(Box::new(move |v: &View| {
+        let maps = index.maps(&dir, v.frame, &v.camera).map_err(|e| ReconError::Input(e.to_string()))?;
+        Ok(maps.map(|m| targets_from_priors(&m, v.width(), v.height())))
+    }))
+}
