@@ -172,7 +172,7 @@ pub fn summary_markdown(r: &Report) -> String {
         r.seed,
         r.refine_rounds
     );
-    s.push_str("## Table I: controllability and success\n\nMean ± std over the cases that produced a plan. `as planned`: the agent's first plan; `refined`: the best round of closed-loop refinement.\n\n");
+    s.push_str("## Table I: controllability and success\n\nMean ± std over the cases that produced a plan. `as planned`: the agent's first plan; `refined`: the best round of closed-loop refinement. `invalid`: executed rollouts that are not physically valid (they stay in the denominators and count as not successful), then the count per reason (a rollout can have several).\n\n");
     s.push_str(&tables::table1_markdown(&r.table1));
     s.push_str("\n## Table II: feasibility and ride comfort (agent waypoints vs executed)\n\n");
     s.push_str(&tables::table2_markdown(&r.table2));

@@ -5,8 +5,10 @@
 //! * LLM agents: the Zone agent is asked again with the executed outcome (closest distance, where
 //!   the adversary was relative to the ego, the zone it reached, MinTTC) in its prompt.
 //!
-//! The best round (zone hit, then success, then lower MinTTC) is the refined result; round 0 is
-//! reported separately. Errors of any stage end the case as a failure with its reason.
+//! The best round (physically valid, then zone hit, then success, then lower MinTTC) is the
+//! refined result; round 0 is reported separately; an invalid rollout is never `good` (its
+//! Success is false), so it is refined like a miss. Errors of any stage end the case as a
+//! failure with its reason.
 
 use crate::spec::{AgentName, CaseSpec};
 use metrics::CaseMetrics;
@@ -75,15 +77,16 @@ fn good(m: &CaseMetrics) -> bool {
     m.zone_hit && m.success_center
 }
 
-fn rank(m: &CaseMetrics) -> (bool, bool, f64) {
-    (m.zone_hit, m.success_center, -m.min_ttc_center_s)
+/// Physically valid first, then zone hit, success, lower MinTTC.
+fn rank(m: &CaseMetrics) -> (bool, bool, bool, f64) {
+    (m.validity.valid, m.zone_hit, m.success_center, -m.min_ttc_center_s)
 }
 
 /// Total order on [`rank`] (a NaN MinTTC ranks as the worst, never panics).
 fn cmp_rank(a: &CaseMetrics, b: &CaseMetrics) -> std::cmp::Ordering {
     let (ra, rb) = (rank(a), rank(b));
     let key = |x: f64| if x.is_nan() { f64::NEG_INFINITY } else { x };
-    (ra.0, ra.1).cmp(&(rb.0, rb.1)).then(key(ra.2).total_cmp(&key(rb.2)))
+    (ra.0, ra.1, ra.2).cmp(&(rb.0, rb.1, rb.2)).then(key(ra.3).total_cmp(&key(rb.3)))
 }
 
 /// The zone (if any) containing a point of the ego frame.

@@ -4,11 +4,16 @@
 //!   after closed-loop refinement (best round) for agents that refine.
 //! * Table II (comfort): per agent, |a_lat|95, |kappa_dot|95 and ComfortViol of the agent's raw
 //!   waypoints vs the physically executed trajectory (round 0).
+//! * Physical validity of the rollouts (both tables): how many executed cases are invalid and
+//!   how many for each reason (`tracking_diverged`, `friction_limit`, `contact_with_other`,
+//!   `left_road`; a case can have several). Invalid cases stay in every denominator and count
+//!   as not successful (the metrics already fold validity into Success).
 //! * Validity of LLM replies (raw-valid, valid after retry, repaired), case counts, failures.
 
 use crate::runner::{CaseResult, Round, Status};
 use crate::spec::AgentName;
 use reason::Validity;
+use scene::executed::InvalidReason;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write;
 
@@ -33,6 +38,52 @@ fn fmt(s: &Option<Stat>, digits: usize) -> String {
     s.map_or("-".into(), |s| format!("{:.*} ± {:.*}", digits, s.mean, digits, s.std))
 }
 
+/// Invalid executed cases, in all and per reason (a case can have several reasons).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct InvalidCounts {
+    pub invalid: usize,
+    pub tracking_diverged: usize,
+    pub friction_limit: usize,
+    pub contact_with_other: usize,
+    pub left_road: usize,
+}
+
+impl InvalidCounts {
+    pub fn of(rounds: &[&Round]) -> Self {
+        let mut c = InvalidCounts::default();
+        for r in rounds {
+            let v = &r.metrics.validity;
+            c.invalid += usize::from(!v.valid);
+            for reason in &v.reasons {
+                match reason {
+                    InvalidReason::TrackingDiverged { .. } => c.tracking_diverged += 1,
+                    InvalidReason::FrictionLimit { .. } => c.friction_limit += 1,
+                    InvalidReason::ContactWithOther { .. } => c.contact_with_other += 1,
+                    InvalidReason::LeftRoad { .. } => c.left_road += 1,
+                }
+            }
+        }
+        c
+    }
+
+    fn cells(&self) -> String {
+        format!(
+            "{} | {} | {} | {} | {}",
+            self.invalid, self.tracking_diverged, self.friction_limit, self.contact_with_other, self.left_road
+        )
+    }
+
+    fn csv(&self) -> String {
+        format!(
+            "{},{},{},{},{}",
+            self.invalid, self.tracking_diverged, self.friction_limit, self.contact_with_other, self.left_road
+        )
+    }
+}
+
+const INVALID_MD_HEADER: &str = "invalid | diverged | friction limit | contact with other | left road";
+const INVALID_CSV_HEADER: &str = "invalid,tracking_diverged,friction_limit,contact_with_other,left_road";
+
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Table1Row {
     pub agent: AgentName,
@@ -40,6 +91,7 @@ pub struct Table1Row {
     pub cases: usize,
     pub no_feasible: usize,
     pub failed: usize,
+    pub validity: InvalidCounts,
     pub zone_hit: Option<Stat>,
     pub zone_hit_paper_axes: Option<Stat>,
     pub success_center: Option<Stat>,
@@ -52,6 +104,7 @@ pub struct Table1Row {
 pub struct Table2Row {
     pub agent: AgentName,
     pub cases: usize,
+    pub validity: InvalidCounts,
     pub a_lat_p95_raw: Option<Stat>,
     pub a_lat_p95_executed: Option<Stat>,
     pub kappa_dot_p95_raw: Option<Stat>,
@@ -90,6 +143,7 @@ fn row1(
         cases: rounds.len(),
         no_feasible: results.iter().filter(|r| matches!(r.status, Status::NoFeasible { .. })).count(),
         failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. })).count(),
+        validity: InvalidCounts::of(&rounds),
         zone_hit: col(&|r| b(r.metrics.zone_hit)),
         zone_hit_paper_axes: col(&|r| b(r.metrics.zone_hit_paper_axes)),
         success_center: col(&|r| b(r.metrics.success_center)),
@@ -120,6 +174,7 @@ pub fn table2(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table2Row> {
             Table2Row {
                 agent: *a,
                 cases: rounds.len(),
+                validity: InvalidCounts::of(&rounds),
                 a_lat_p95_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.a_lat_p95)),
                 a_lat_p95_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.a_lat_p95)),
                 kappa_dot_p95_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.kappa_dot_p95)),
@@ -160,16 +215,17 @@ pub fn validity(results: &[CaseResult], agents: &[AgentName]) -> Vec<ValidityRow
 }
 
 pub fn table1_markdown(rows: &[Table1Row]) -> String {
-    let mut s = String::from("| agent | variant | cases | no feasible | failed | Zone Hit | Success (centre TTC < 1 s) | MinTTC centre (s) | Success (box TTC < 1 s) | MinTTC box (s) | Zone Hit, paper axes |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut s = format!("| agent | variant | cases | no feasible | failed | {INVALID_MD_HEADER} | Zone Hit | Success (centre TTC < 1 s) | MinTTC centre (s) | Success (box TTC < 1 s) | MinTTC box (s) | Zone Hit, paper axes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.agent.as_str(),
             r.variant,
             r.cases,
             r.no_feasible,
             r.failed,
+            r.validity.cells(),
             fmt(&r.zone_hit, 3),
             fmt(&r.success_center, 3),
             fmt(&r.min_ttc_center_s, 3),
@@ -182,13 +238,14 @@ pub fn table1_markdown(rows: &[Table1Row]) -> String {
 }
 
 pub fn table2_markdown(rows: &[Table2Row]) -> String {
-    let mut s = String::from("| agent | cases | \\|a_lat\\|95 raw (m/s²) | \\|a_lat\\|95 executed | \\|κ̇\\|95 raw (1/(m s)) | \\|κ̇\\|95 executed | ComfortViol raw (%) | ComfortViol executed |\n|---|---|---|---|---|---|---|---|\n");
+    let mut s = format!("| agent | cases | {INVALID_MD_HEADER} | \\|a_lat\\|95 raw (m/s²) | \\|a_lat\\|95 executed | \\|κ̇\\|95 raw (1/(m s)) | \\|κ̇\\|95 executed | ComfortViol raw (%) | ComfortViol executed |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.agent.as_str(),
             r.cases,
+            r.validity.cells(),
             fmt(&r.a_lat_p95_raw, 2),
             fmt(&r.a_lat_p95_executed, 2),
             fmt(&r.kappa_dot_p95_raw, 3),
@@ -205,16 +262,17 @@ fn csv_stat(s: &Option<Stat>) -> String {
 }
 
 pub fn table1_csv(rows: &[Table1Row]) -> String {
-    let mut s = String::from("agent,variant,cases,no_feasible,failed,zone_hit_mean,zone_hit_std,success_center_mean,success_center_std,min_ttc_center_mean,min_ttc_center_std,success_box_mean,success_box_std,min_ttc_box_mean,min_ttc_box_std,zone_hit_paper_axes_mean,zone_hit_paper_axes_std\n");
+    let mut s = format!("agent,variant,cases,no_feasible,failed,{INVALID_CSV_HEADER},zone_hit_mean,zone_hit_std,success_center_mean,success_center_std,min_ttc_center_mean,min_ttc_center_std,success_box_mean,success_box_std,min_ttc_box_mean,min_ttc_box_std,zone_hit_paper_axes_mean,zone_hit_paper_axes_std\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             r.agent.as_str(),
             r.variant,
             r.cases,
             r.no_feasible,
             r.failed,
+            r.validity.csv(),
             csv_stat(&r.zone_hit),
             csv_stat(&r.success_center),
             csv_stat(&r.min_ttc_center_s),
@@ -227,13 +285,14 @@ pub fn table1_csv(rows: &[Table1Row]) -> String {
 }
 
 pub fn table2_csv(rows: &[Table2Row]) -> String {
-    let mut s = String::from("agent,cases,a_lat_p95_raw_mean,a_lat_p95_raw_std,a_lat_p95_executed_mean,a_lat_p95_executed_std,kappa_dot_p95_raw_mean,kappa_dot_p95_raw_std,kappa_dot_p95_executed_mean,kappa_dot_p95_executed_std,comfort_viol_raw_mean,comfort_viol_raw_std,comfort_viol_executed_mean,comfort_viol_executed_std\n");
+    let mut s = format!("agent,cases,{INVALID_CSV_HEADER},a_lat_p95_raw_mean,a_lat_p95_raw_std,a_lat_p95_executed_mean,a_lat_p95_executed_std,kappa_dot_p95_raw_mean,kappa_dot_p95_raw_std,kappa_dot_p95_executed_mean,kappa_dot_p95_executed_std,comfort_viol_raw_mean,comfort_viol_raw_std,comfort_viol_executed_mean,comfort_viol_executed_std\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{}",
             r.agent.as_str(),
             r.cases,
+            r.validity.csv(),
             csv_stat(&r.a_lat_p95_raw),
             csv_stat(&r.a_lat_p95_executed),
             csv_stat(&r.kappa_dot_p95_raw),

@@ -65,6 +65,23 @@ fn tables_plots_determinism_and_failures() {
     );
     assert_eq!(a.table1[2].cases, 32);
     assert!(a.failures.is_empty());
+    // Every outcome counted: the invalid counts are the cases' own validity records, and an
+    // invalid rollout is never a success.
+    for row in a.table1.iter().filter(|r| r.variant == "as planned") {
+        let firsts: Vec<_> = a.cases.iter().filter(|c| c.spec.agent == row.agent).filter_map(|c| c.first()).collect();
+        let invalid = firsts.iter().filter(|r| !r.metrics.validity.valid).count();
+        assert_eq!(row.validity.invalid, invalid, "{:?}", row.agent);
+        let count =
+            |key: &str| firsts.iter().filter(|r| r.metrics.validity.reasons.iter().any(|x| x.key() == key)).count();
+        let v = &row.validity;
+        assert_eq!(
+            [v.tracking_diverged, v.friction_limit, v.contact_with_other, v.left_road],
+            scene::executed::InvalidReason::KEYS.map(count)
+        );
+        assert!(firsts.iter().all(|r| r.metrics.validity.valid || !r.metrics.success_center));
+    }
+    let table1_md = std::fs::read_to_string(tmp.path().join("a/table1.md")).unwrap();
+    assert!(table1_md.contains("| invalid | diverged | friction limit | contact with other | left road |"));
 
     // Deterministic: a second run gives the same cases and tables.
     let b = run(&scenes, &tmp.path().join("b"), Box::new(sim::simulate), false);

@@ -2,7 +2,10 @@
 //! (the plan's start time to its last waypoint), on a 0.1 s grid of real time.
 //!
 //! * MinTTC: minimum centre TTC (paper) and minimum box TTC (exact first contact), capped 5 s.
-//! * Success: MinTTC < 1 s (both variants reported).
+//! * Success: MinTTC < 1 s (both variants reported) **and a physically valid rollout**
+//!   (`executed.validity`: an adversary that lost control, slid at the tyre limit, hit a third
+//!   actor first or left the road is not a successful corner case). The TTC numbers themselves
+//!   are reported for every rollout.
 //! * Zone Hit: at the instant of minimum centre distance, the adversary's centre expressed in the
 //!   ego frame **at that instant** lies in the plan's target zone. The paper's variant, which
 //!   rotates by the ego's axes at the first sample instead, is reported as `zone_hit_paper_axes`.
@@ -11,7 +14,7 @@
 use crate::comfort::{comfort, Comfort};
 use crate::kinematics::{uniform, velocities, METRIC_DT_S};
 use crate::ttc::{box_ttc, center_ttc, Footprint};
-use scene::executed::Contact;
+use scene::executed::{Contact, Validity};
 use scene::glam::DVec2;
 use scene::motion::Pose2;
 use scene::zones::zone_rect;
@@ -40,6 +43,8 @@ pub struct CaseMetrics {
     /// The paper's variant: ego axes of the interval's first sample.
     pub zone_hit_paper_axes: bool,
     pub first_contact: Option<Contact>,
+    /// The rollout's physical validity (copied from the executed file).
+    pub validity: Validity,
     pub comfort_executed: Option<Comfort>,
     pub comfort_reference: Option<Comfort>,
 }
@@ -111,8 +116,8 @@ pub fn evaluate(e: &Executed) -> Result<CaseMetrics, MetricsError> {
         t_min_ttc_center_s: m_center.1,
         min_ttc_box_s: m_box.0,
         t_min_ttc_box_s: m_box.1,
-        success_center: m_center.0 < SUCCESS_TTC_S,
-        success_box: m_box.0 < SUCCESS_TTC_S,
+        success_center: m_center.0 < SUCCESS_TTC_S && e.validity.valid,
+        success_box: m_box.0 < SUCCESS_TTC_S && e.validity.valid,
         min_distance_m: m_dist.0,
         t_min_distance_s: adv[i].t,
         adversary_in_ego_frame: [local.x, local.y],
@@ -121,6 +126,7 @@ pub fn evaluate(e: &Executed) -> Result<CaseMetrics, MetricsError> {
         zone_hit: hit,
         zone_hit_paper_axes: hit_paper,
         first_contact: e.first_contact.clone(),
+        validity: e.validity.clone(),
         comfort_executed: comfort(&adv, dt),
         comfort_reference: comfort(&uniform(&reference, t0, t1, dt), dt),
     })

@@ -1,6 +1,6 @@
 //! Case metrics on hand-made executed trajectories whose answers are known in closed form.
 
-use scene::executed::{ActorInfo, Executed, ExecutedStep, EXECUTED_FORMAT};
+use scene::executed::{ActorInfo, Executed, ExecutedStep, InvalidReason, Validity, EXECUTED_FORMAT};
 use scene::motion::Pose2;
 use scene::plan::{Plan, PLAN_FORMAT};
 use scene::{Behavior, Risk, Waypoint, Zone, ZoneLayout};
@@ -69,6 +69,14 @@ fn executed(plan: Plan, ego: impl Fn(f64) -> Pose2, adv: impl Fn(f64) -> Pose2) 
         steps,
         ego_path: times.iter().map(|&t| ego(t)).collect(),
         first_contact: None,
+        validity: Validity {
+            valid: true,
+            reasons: Vec::new(),
+            max_tracking_error_m: 0.0,
+            friction_limit_s: 0.0,
+            max_abs_accel_lat: 0.0,
+            road_checked: false,
+        },
         resampled: Vec::new(),
     };
     e.validate().unwrap();
@@ -91,6 +99,14 @@ fn approaching_a_stopped_car() {
     assert!(m.zone_hit && m.zone_hit_paper_axes);
     // The plan's waypoints stand still: no lateral acceleration.
     assert_eq!(m.comfort_reference.unwrap().a_lat_p95, 0.0);
+    // The same approach by an adversary that slid at the tyre limit is not a success, though
+    // its TTC is still reported.
+    let mut slid = e.clone();
+    slid.validity.valid = false;
+    slid.validity.reasons.push(InvalidReason::FrictionLimit { t_first: 1.0, time_s: 0.5, limit_s: 0.2 });
+    let ms = metrics::evaluate(&slid).unwrap();
+    assert!(!ms.success_center && !ms.success_box && !ms.validity.valid);
+    assert_eq!(ms.min_ttc_center_s, m.min_ttc_center_s);
     // Aiming at the back zone is a miss.
     let mut back = e.clone();
     back.plan.target_zone = Zone::Back;

@@ -1,14 +1,15 @@
-//! The executed trajectory (`executed.json`, format `carla-gs-executed/1`): what the physics
+//! The executed trajectory (`executed.json`, format `carla-gs-executed/2`): what the physics
 //! stage did with a plan. It is self-contained for measurement: it carries the plan, the actor
 //! sizes, the adversary's state at every control step, the ego's logged path over the same steps,
-//! the first contact, and resamplings at fixed rates (10 Hz for metrics, a video rate on request).
+//! the first contact, the rollout's physical validity (and why not), and resamplings at fixed
+//! rates (10 Hz for metrics, a video rate on request). Version 2 added `validity`.
 
 use crate::motion::Pose2;
 use crate::plan::Plan;
 use crate::track::ObjectClass;
 use serde::{Deserialize, Serialize};
 
-pub const EXECUTED_FORMAT: &str = "carla-gs-executed/1";
+pub const EXECUTED_FORMAT: &str = "carla-gs-executed/2";
 
 /// The adversary's state after one control step. SI units, world frame, scene clock.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -45,6 +46,50 @@ pub struct Contact {
     pub class: ObjectClass,
 }
 
+/// Why a rollout is not a physically valid corner case.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "reason")]
+pub enum InvalidReason {
+    /// The executed path left its reference by more than `limit_m` (first at `t`).
+    TrackingDiverged { t: f64, error_m: f64, limit_m: f64 },
+    /// The tyres were at the friction limit for `time_s` in all (more than `limit_s`), first at
+    /// `t_first`.
+    FrictionLimit { t_first: f64, time_s: f64, limit_s: f64 },
+    /// The adversary touched another actor than the ego first.
+    ContactWithOther { t: f64, other: String, class: ObjectClass },
+    /// The adversary's box crossed a road edge (map polyline `edge_id`) it did not touch at t0.
+    LeftRoad { t: f64, edge_id: i64 },
+}
+
+impl InvalidReason {
+    /// Every reason's key, in table order.
+    pub const KEYS: [&'static str; 4] = ["tracking_diverged", "friction_limit", "contact_with_other", "left_road"];
+
+    pub fn key(&self) -> &'static str {
+        match self {
+            InvalidReason::TrackingDiverged { .. } => Self::KEYS[0],
+            InvalidReason::FrictionLimit { .. } => Self::KEYS[1],
+            InvalidReason::ContactWithOther { .. } => Self::KEYS[2],
+            InvalidReason::LeftRoad { .. } => Self::KEYS[3],
+        }
+    }
+}
+
+/// The physical validity of a rollout: `valid` exactly when `reasons` is empty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Validity {
+    pub valid: bool,
+    pub reasons: Vec<InvalidReason>,
+    /// Largest distance between the executed position and the reference at a control step (m).
+    pub max_tracking_error_m: f64,
+    /// Total time the tyres spent at the friction limit (s).
+    pub friction_limit_s: f64,
+    /// Largest |lateral acceleration| at any control step (m/s^2).
+    pub max_abs_accel_lat: f64,
+    /// Whether the scene had road edges to test `left_road` against.
+    pub road_checked: bool,
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ActorInfo {
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -75,6 +120,7 @@ pub struct Executed {
     /// The ego's logged pose at each step time.
     pub ego_path: Vec<Pose2>,
     pub first_contact: Option<Contact>,
+    pub validity: Validity,
     pub resampled: Vec<ResampledSeries>,
 }
 
@@ -94,6 +140,12 @@ impl Executed {
             return Err((
                 "steps".into(),
                 format!("need >= 2 steps and one ego pose per step ({} vs {})", self.steps.len(), self.ego_path.len()),
+            ));
+        }
+        if self.validity.valid != self.validity.reasons.is_empty() {
+            return Err((
+                "validity.valid".into(),
+                format!("is {} but {} reasons are listed", self.validity.valid, self.validity.reasons.len()),
             ));
         }
         for (i, (s, e)) in self.steps.iter().zip(&self.ego_path).enumerate() {

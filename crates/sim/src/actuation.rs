@@ -11,7 +11,7 @@
 //!   `[(0, 400), (1890, 500), (5730, 400)]` N m);
 //! * brake `F_b = brake * wheels * T_brake / r` (CARLA: 1500 N m per wheel), opposing motion;
 //! * drag `0.5 rho Cd A v^2` and rolling resistance `C_rr m g` while moving;
-//! * `a = (F_d - F_b - F_drag - F_roll) / m`, limited to the tyre friction `mu g`, and never
+//! * `a = (F_d - F_b - F_drag - F_roll) / m`, limited to the tyre friction `friction g`, and never
 //!   through zero speed into reverse (no reverse gear is modelled: braking stops the car).
 //!
 //! Pedal lag: CARLA's PhysX vehicles do not turn a pedal step into a force step (engine
@@ -123,7 +123,7 @@ impl ActuationParams {
         if !moving && drive <= resist {
             a = 0.0; // static: resistances hold the car, they do not push it backwards
         }
-        a = a.clamp(-veh.mu * G, veh.mu * G);
+        a = a.clamp(-veh.friction * G, veh.friction * G);
         if a < 0.0 && v + a * h < 0.0 {
             a = -v.max(0.0) / h;
         }
@@ -167,9 +167,9 @@ mod tests {
     fn forces_by_hand() {
         let (a, v) = (ActuationParams::default(), VehicleParams::vehicle2());
         // Full brake from 10 m/s: 4 * 1500 / 0.3 = 20 kN, plus drag and rolling resistance,
-        // over 1093 kg is beyond the friction limit mu g = 10.29 m/s^2.
+        // over 1093 kg is beyond the friction limit 1.0 g = 9.81 m/s^2.
         let c = Control { throttle: 0.0, brake: 1.0, steer: 0.0 };
-        assert!((a.longitudinal_accel(&c, 10.0, &v, 0.01) + v.mu * G).abs() < 1e-12);
+        assert!((a.longitudinal_accel(&c, 10.0, &v, 0.01) + v.friction * G).abs() < 1e-12);
         // Half brake: (10000 + 0.5*1.225*0.3*2.2*100 + 0.015*1093.295*9.81) / 1093.295.
         let c = Control { brake: 0.5, ..c };
         let expect = -(10000.0 + 0.5 * 1.225 * 0.3 * 2.2 * 100.0 + 0.015 * v.m * G) / v.m;
@@ -180,7 +180,7 @@ mod tests {
         // Full throttle from rest: 1st gear 400 N m * 4.17 * 3.7 * 0.9 / 0.3 = 18.5 kN -> friction limited.
         let go = Control { throttle: 1.0, brake: 0.0, steer: 0.0 };
         assert!((a.max_drive_force(0.0) - 400.0 * 4.17 * 3.7 * 0.9 / 0.3).abs() < 1e-9);
-        assert!((a.longitudinal_accel(&go, 0.0, &v, 0.01) - v.mu * G).abs() < 1e-12);
+        assert!((a.longitudinal_accel(&go, 0.0, &v, 0.01) - v.friction * G).abs() < 1e-12);
         // Top gear still pulls at 45 m/s (162 km/h) but the engine is past max rpm in 1st.
         assert!(a.max_drive_force(45.0) > 0.0);
         assert!(a.max_drive_force(45.0) < a.max_drive_force(10.0));

@@ -1,8 +1,10 @@
 //! `sim`: the Execute stage. A plan's waypoints become a physically feasible trajectory:
 //! CARLA's `VehiclePIDController` (`pid`) drives a CARLA-like actuation layer (`actuation`) on
 //! CommonRoad's single-track model (`model`, parameters in `params`), tracking a timed
-//! reference (`reference`, `tracker`); `rollout` runs a whole plan in a scene with oriented-box
-//! collision checks against the replayed log (`collision`). No CARLA server is needed.
+//! reference (`reference`, smoothed from noisy logs by `smooth`, tracked by `tracker`) with
+//! friction-limited tyres (`tyre`); `rollout` runs a whole plan in a scene with oriented-box
+//! collision checks against the replayed log (`collision`) and judges the rollout's physical
+//! validity (`validity`). No CARLA server is needed.
 
 pub mod actuation;
 pub mod collision;
@@ -12,7 +14,10 @@ pub mod params;
 pub mod pid;
 pub mod reference;
 pub mod rollout;
+pub mod smooth;
 pub mod tracker;
+pub mod tyre;
+pub mod validity;
 
 pub use error::SimError;
 pub use rollout::{simulate, RolloutConfig};

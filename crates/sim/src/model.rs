@@ -1,7 +1,7 @@
 //! The CommonRoad single-track model with linear tyres and load transfer ("ST"), switching to
 //! the kinematic single-track model about the centre of gravity below `kinematic_below` m/s,
-//! reproduced term by term from `vehicle_dynamics_st` of commonroad-vehicle-models 3.0.2
-//! (golden tests in `tests/golden.rs` compare against that package).
+//! reproduced from `vehicle_dynamics_st` of commonroad-vehicle-models 3.0.2 (golden tests in
+//! `tests/golden.rs` compare against that package), with friction-limited tyres added.
 //!
 //! State `x = [sx, sy, delta, v, psi, psi_dot, beta]`: centre-of-gravity position (m, world),
 //! front steering angle (rad), speed (m/s), yaw (rad), yaw rate (rad/s), slip angle at the centre
@@ -17,6 +17,11 @@
 //! dbeta = (mu / (v^2 l) (Csr Fr b - Csf Ff a) - 1) psi_dot
 //!         - mu / (v l) (Csr Fr + Csf Ff) beta + mu / (v l) Csf Ff delta
 //! ```
+//! Equivalently, in force form (what the code evaluates): `I dpsi_dot = a F_yf - b F_yr`,
+//! `dbeta = (F_yf + F_yr) / (m v) - psi_dot` with the axle forces of [`axle_forces`]. With
+//! CommonRoad's linear tyres that is the formula above; by default the forces are limited by a
+//! friction circle (`tyre.rs`), so `|a_lat| = |F_yf + F_yr| / m <= friction * g`.
+//!
 //! Kinematic branch (|v| < 0.1): `beta_k = atan(tan(delta) b / l)`, `dsx = v cos(beta_k + psi)`,
 //! `dsy = v sin(beta_k + psi)`, `dpsi = v cos(beta_k) tan(delta) / l`, and CommonRoad's
 //! expressions for `dbeta` and `dpsi_dot` (kept verbatim, including its `(tan^2 delta b / l)^2`
@@ -27,6 +32,7 @@
 //! [`stable_step`] shortens sub-steps near the switch to keep RK4 stable.
 
 use crate::params::{LongitudinalLimits, SteeringLimits, VehicleParams};
+use crate::tyre::AxleForce;
 
 pub const G: f64 = 9.81;
 
@@ -64,7 +70,7 @@ pub fn acceleration_constraints(v: f64, a: f64, p: &LongitudinalLimits) -> f64 {
 pub fn derivative(x: &State, u_in: [f64; 2], p: &VehicleParams) -> State {
     let u0 = steering_constraints(x[2], u_in[0], &p.steering);
     let u1 = acceleration_constraints(x[3], u_in[1], &p.longitudinal);
-    let (lf, lr, h, m, i) = (p.a, p.b, p.h_s, p.m, p.i_z);
+    let (lf, lr, m, i) = (p.a, p.b, p.m, p.i_z);
     let lwb = lf + lr;
     if x[3].abs() < p.kinematic_below {
         let beta_k = (x[2].tan() * lr / lwb).atan();
@@ -82,24 +88,45 @@ pub fn derivative(x: &State, u_in: [f64; 2], p: &VehicleParams) -> State {
             d_beta,
         ];
     }
-    let mu = p.mu;
-    let (csf, csr) = (p.c_sf, p.c_sr);
-    let ff = G * lr - u1 * h;
-    let fr = G * lf + u1 * h;
     let v = x[3];
+    let [f, r] = axle_forces(x, u1, p);
     [
         v * (x[6] + x[4]).cos(),
         v * (x[6] + x[4]).sin(),
         u0,
         u1,
         x[5],
-        -mu * m / (v * i * (lr + lf)) * (lf * lf * csf * ff + lr * lr * csr * fr) * x[5]
-            + mu * m / (i * (lr + lf)) * (lr * csr * fr - lf * csf * ff) * x[6]
-            + mu * m / (i * (lr + lf)) * lf * csf * ff * x[2],
-        (mu / (v * v * (lr + lf)) * (csr * fr * lr - csf * ff * lf) - 1.0) * x[5]
-            - mu / (v * (lr + lf)) * (csr * fr + csf * ff) * x[6]
-            + mu / (v * (lr + lf)) * (csf * ff) * x[2],
+        (lf * f.applied - lr * r.applied) / i,
+        (f.applied + r.applied) / (m * v) - x[5],
     ]
+}
+
+/// Front and rear lateral forces of the ST branch (N) at state `x` with the (constrained)
+/// longitudinal acceleration `u1`: slip angles `alpha_f = delta - beta - a psi_dot / v`,
+/// `alpha_r = -beta + b psi_dot / v`, loads `F_zf = m (g b - u1 h) / l`,
+/// `F_zr = m (g a + u1 h) / l`, linear demand `mu C_S F_z alpha`, limited by [`crate::tyre::TyreModel`].
+pub fn axle_forces(x: &State, u1: f64, p: &VehicleParams) -> [AxleForce; 2] {
+    let (lf, lr, h, m) = (p.a, p.b, p.h_s, p.m);
+    let l = lf + lr;
+    let v = x[3];
+    let fz_f = m * (G * lr - u1 * h) / l;
+    let fz_r = m * (G * lf + u1 * h) / l;
+    let alpha_f = x[2] - x[6] - lf * x[5] / v;
+    let alpha_r = -x[6] + lr * x[5] / v;
+    [
+        p.tyre.axle(p.mu * p.c_sf * fz_f * alpha_f, fz_f, u1, p.friction, G),
+        p.tyre.axle(p.mu * p.c_sr * fz_r * alpha_r, fz_r, u1, p.friction, G),
+    ]
+}
+
+/// Whether either axle's tyres slide (linear demand beyond the friction capacity) at `x` under
+/// input `u_in`; never in the kinematic branch.
+pub fn at_friction_limit(x: &State, u_in: [f64; 2], p: &VehicleParams) -> bool {
+    if x[3].abs() < p.kinematic_below {
+        return false;
+    }
+    let u1 = acceleration_constraints(x[3], u_in[1], &p.longitudinal);
+    axle_forces(x, u1, p).iter().any(AxleForce::at_limit)
 }
 
 fn axpy(x: &State, k: &State, h: f64) -> State {

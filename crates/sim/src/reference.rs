@@ -1,22 +1,67 @@
 //! A timed reference path `[(t, x, y)]` on the scene clock: position, velocity and the
 //! look-ahead point the lateral controller steers to.
 //!
-//! * Position: linear between points; outside the span it continues at the end velocity
-//!   (so a controller near the end keeps a sensible heading instead of circling the last point).
-//! * Velocity: central difference of the position over `+-VELOCITY_HALF_WINDOW_S`, which is
-//!   the reference's own timing (no hidden clock).
+//! * Position: linear between points ([`Reference::new`]), or a cubic Hermite spline through
+//!   smoothed states (position and velocity, [`Reference::smoothed`], see `smooth.rs`); outside
+//!   the span it continues at the end velocity (so a controller near the end keeps a sensible
+//!   heading instead of circling the last point).
+//! * Velocity: for the linear reference the central difference of the position over
+//!   `+-VELOCITY_HALF_WINDOW_S`, which is the reference's own timing (no hidden clock); for the
+//!   smoothed reference the spline's derivative.
 //! * Look-ahead: the reference point `lookahead_s` ahead in time, pushed further along the path
 //!   until it is at least `min_distance` from the vehicle.
 
+use crate::smooth::{smooth, Sample, Smoothed, SmoothingConfig};
 use scene::glam::DVec2;
 
 pub const VELOCITY_HALF_WINDOW_S: f64 = 0.05;
+/// Below this smoothed speed (m/s) the initial heading is the logged one, not the velocity's.
+pub const HEADING_MIN_SPEED: f64 = 1.0;
 const LOOKAHEAD_SEARCH_STEP_S: f64 = 0.05;
 const LOOKAHEAD_SEARCH_MAX_S: f64 = 5.0;
+
+/// Where a rollout starts: the reference and the vehicle's initial speed (m/s) and heading (rad).
+#[derive(Clone, Debug)]
+pub struct Start {
+    pub reference: Reference,
+    pub speed: f64,
+    pub heading: f64,
+}
+
+/// The reference for a timed path whose first `n_logged` points are logged positions and the rest
+/// a plan's waypoints: smoothed (`smooth.rs`, with the logged and plan sigmas) unless smoothing is
+/// off. The initial speed is the reference's speed at its start; the initial heading its
+/// direction of motion there, or `logged_heading` below [`HEADING_MIN_SPEED`].
+pub fn start_for_path(
+    points: &[(f64, DVec2)],
+    n_logged: usize,
+    logged_heading: f64,
+    cfg: &SmoothingConfig,
+) -> Result<Start, String> {
+    let reference = if cfg.enabled {
+        let samples: Vec<Sample> = points
+            .iter()
+            .enumerate()
+            .map(|(i, (t, p))| Sample {
+                t: *t,
+                p: *p,
+                sigma: if i < n_logged { cfg.log_sigma_m } else { cfg.plan_sigma_m },
+            })
+            .collect();
+        Reference::smoothed(&smooth(&samples, cfg)?)?
+    } else {
+        Reference::new(points.to_vec())?
+    };
+    let v = reference.velocity(reference.start_time());
+    let heading = if v.length() >= HEADING_MIN_SPEED { v.y.atan2(v.x) } else { logged_heading };
+    Ok(Start { speed: v.length(), heading, reference })
+}
 
 #[derive(Clone, Debug)]
 pub struct Reference {
     points: Vec<(f64, DVec2)>,
+    /// Velocities at the points (smoothed reference): Hermite interpolation.
+    velocities: Option<Vec<DVec2>>,
 }
 
 impl Reference {
@@ -36,7 +81,17 @@ impl Reference {
                 ));
             }
         }
-        Ok(Reference { points })
+        Ok(Reference { points, velocities: None })
+    }
+
+    /// A spline through smoothed states (same requirements as [`Reference::new`]).
+    pub fn smoothed(states: &[Smoothed]) -> Result<Self, String> {
+        let mut r = Reference::new(states.iter().map(|s| (s.t, s.p)).collect())?;
+        if states.iter().any(|s| !s.v.is_finite()) {
+            return Err("smoothed reference: velocities must be finite".into());
+        }
+        r.velocities = Some(states.iter().map(|s| s.v).collect());
+        Ok(r)
     }
 
     pub fn start_time(&self) -> f64 {
@@ -49,6 +104,9 @@ impl Reference {
 
     fn end_velocity(&self, first: bool) -> DVec2 {
         let n = self.points.len();
+        if let Some(v) = &self.velocities {
+            return if first { v[0] } else { v[n - 1] };
+        }
         let ((t0, p0), (t1, p1)) =
             if first { (self.points[0], self.points[1]) } else { (self.points[n - 2], self.points[n - 1]) };
         (p1 - p0) / (t1 - t0)
@@ -65,10 +123,35 @@ impl Reference {
         }
         let i = self.points.partition_point(|(ti, _)| *ti <= t);
         let ((t0, p0), (t1, p1)) = (self.points[i - 1], self.points[i]);
-        p0 + (p1 - p0) * ((t - t0) / (t1 - t0))
+        let s = (t - t0) / (t1 - t0);
+        match &self.velocities {
+            None => p0 + (p1 - p0) * s,
+            Some(v) => {
+                let h = t1 - t0;
+                let (s2, s3) = (s * s, s * s * s);
+                p0 * (2.0 * s3 - 3.0 * s2 + 1.0)
+                    + v[i - 1] * (h * (s3 - 2.0 * s2 + s))
+                    + p1 * (3.0 * s2 - 2.0 * s3)
+                    + v[i] * (h * (s3 - s2))
+            }
+        }
     }
 
     pub fn velocity(&self, t: f64) -> DVec2 {
+        if let Some(v) = &self.velocities {
+            let (ts, te) = (self.start_time(), self.end_time());
+            if t <= ts || t >= te {
+                return self.end_velocity(t <= ts);
+            }
+            let i = self.points.partition_point(|(ti, _)| *ti <= t);
+            let ((t0, p0), (t1, p1)) = (self.points[i - 1], self.points[i]);
+            let h = t1 - t0;
+            let s = (t - t0) / h;
+            let s2 = s * s;
+            return (p0 * (6.0 * s2 - 6.0 * s) + p1 * (6.0 * s - 6.0 * s2)) / h
+                + v[i - 1] * (3.0 * s2 - 4.0 * s + 1.0)
+                + v[i] * (3.0 * s2 - 2.0 * s);
+        }
         let h = VELOCITY_HALF_WINDOW_S;
         (self.position(t + h) - self.position(t - h)) / (2.0 * h)
     }
@@ -103,6 +186,23 @@ mod tests {
         // 0.2 s ahead is 2 m, below the 3 m minimum: pushed to 3 m.
         let p = r.lookahead(0.0, DVec2::ZERO, 0.2, 3.0);
         assert!((p.x - 3.0).abs() < 0.51 && p.x >= 3.0);
+    }
+
+    #[test]
+    fn smoothed_reference_interpolates_position_and_velocity() {
+        // Hermite through samples of p = (t^3, 2t): exact for cubics.
+        let f = |t: f64| DVec2::new(t.powi(3), 2.0 * t);
+        let df = |t: f64| DVec2::new(3.0 * t * t, 2.0);
+        let states: Vec<Smoothed> =
+            (0..=10).map(|i| i as f64 * 0.1).map(|t| Smoothed { t, p: f(t), v: df(t), a: DVec2::ZERO }).collect();
+        let r = Reference::smoothed(&states).unwrap();
+        for t in [0.05, 0.33, 0.71, 0.99] {
+            assert!((r.position(t) - f(t)).length() < 1e-12, "{t}");
+            assert!((r.velocity(t) - df(t)).length() < 1e-12, "{t}");
+        }
+        // Outside: continues at the end velocity.
+        assert!((r.position(1.1) - (f(1.0) + df(1.0) * 0.1)).length() < 1e-12);
+        assert!((r.velocity(-1.0) - df(0.0)).length() < 1e-12);
     }
 
     #[test]

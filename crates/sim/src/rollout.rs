@@ -4,13 +4,19 @@
 //! ego and every other actor replay their logged poses. After every physics sub-step from the
 //! start time on, the adversary's box is tested against every other box; the first contact is
 //! recorded (the rollout continues to the plan's end: the trajectory is what gets rendered).
+//!
+//! The reference is the logged path and the plan's waypoints **smoothed** together (`smooth.rs`):
+//! perception jitter in the log neither sets the initial speed and heading nor reaches the
+//! steering. The rollout's physical validity (`validity.rs`) is written into the output.
 
 use crate::actuation::ActuationParams;
 use crate::collision::{cuboid, first_overlap, replayed_actors};
 use crate::error::SimError;
 use crate::params::VehicleParams;
-use crate::reference::Reference;
+use crate::reference::start_for_path;
+use crate::smooth::SmoothingConfig;
 use crate::tracker::{Tracker, TrackerConfig};
+use crate::validity::{assess, BoxSize, ValidityConfig};
 use scene::executed::{ActorInfo, Contact, ExecutedStep, ResampledSeries, EXECUTED_FORMAT};
 use scene::glam::DVec2;
 use scene::motion::{resample, sample_series, Pose2};
@@ -24,15 +30,23 @@ pub struct RolloutConfig {
     pub actuation: ActuationParams,
     /// Rates (Hz) of the resampled series in the output (10 Hz for metrics; add a video rate).
     pub resample_hz: Vec<f64>,
+    /// Smoothing of the reference path.
+    #[serde(default)]
+    pub smoothing: SmoothingConfig,
+    /// When a rollout counts as physically valid.
+    #[serde(default)]
+    pub validity: ValidityConfig,
 }
 
 impl Default for RolloutConfig {
     fn default() -> Self {
         RolloutConfig {
             tracker: TrackerConfig::default(),
-            vehicle: VehicleParams::vehicle2(),
+            vehicle: VehicleParams::default(),
             actuation: ActuationParams::default(),
             resample_hz: vec![10.0],
+            smoothing: SmoothingConfig::default(),
+            validity: ValidityConfig::default(),
         }
     }
 }
@@ -41,7 +55,7 @@ impl Default for RolloutConfig {
 pub const MAX_START_OFFSET_M: f64 = 5.0;
 
 pub const BACKEND: &str =
-    "carla-gs physics: CommonRoad ST (vehicle2) + CARLA-like actuation + CARLA VehiclePIDController";
+    "carla-gs physics: CommonRoad ST (vehicle2, friction-limited tyres, 1 rad/s steering) + CARLA-like actuation + CARLA VehiclePIDController on a smoothed reference";
 
 /// Runs the plan. Checks the plan against the scene first.
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
@@ -73,12 +87,13 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
         return Err(SimError::FarFromLog { id: adversary.id.clone(), distance: offset, max: MAX_START_OFFSET_M });
     }
     let mut points: Vec<(f64, DVec2)> = run.iter().filter(|p| p.t < t0 - 1e-9).map(|p| (p.t, p.position())).collect();
+    let n_logged = points.len();
     points.extend(plan.waypoints.iter().map(|w| (w.t, DVec2::new(w.x, w.y))));
-    let reference = Reference::new(points).map_err(SimError::Reference)?;
+    let start = start_for_path(&points, n_logged, run[0].heading, &cfg.smoothing).map_err(SimError::Reference)?;
+    let reference = start.reference;
     let t_start = reference.start_time();
-    let v0 = reference.velocity(t_start).length();
     let p0 = reference.position(t_start);
-    let initial = [p0.x, p0.y, 0.0, v0, run[0].heading, 0.0, 0.0];
+    let initial = [p0.x, p0.y, 0.0, start.speed, start.heading, 0.0, 0.0];
 
     let size = adversary.median_size_lwh();
     let (adv_box, adv_radius) = cuboid(size[0], size[1]);
@@ -95,6 +110,8 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
         }
     })?;
 
+    let size_box = BoxSize { length: size[0], width: size[1] };
+    let validity = assess(&records, t0, contact.as_ref(), scene.map.as_ref(), size_box, &cfg.validity);
     let ego_series = scene.ego_series();
     let steps: Vec<ExecutedStep> = records
         .iter()
@@ -139,6 +156,7 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
         steps,
         ego_path,
         first_contact: contact,
+        validity,
         resampled,
     })
 }

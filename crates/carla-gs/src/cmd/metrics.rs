@@ -48,6 +48,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(c) => println!("first contact   {:.2} s with {}", c.t, c.other),
         None => println!("first contact   none"),
     }
+    let reasons: Vec<&str> = m.validity.reasons.iter().map(|r| r.key()).collect();
+    println!(
+        "validity        {}{}",
+        if m.validity.valid { "valid" } else { "INVALID (not a success)" },
+        if reasons.is_empty() { String::new() } else { format!(": {}", reasons.join(", ")) }
+    );
     println!("executed        {}", comfort_line(&m.comfort_executed));
     println!("reference       {}", comfort_line(&m.comfort_reference));
     Ok(())

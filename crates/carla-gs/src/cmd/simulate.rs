@@ -57,5 +57,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(c) => println!("first contact at {:.2} s with {} ({})", c.t, c.other, c.class.as_str()),
         None => println!("no contact"),
     }
+    let v = &executed.validity;
+    let reasons: Vec<&str> = v.reasons.iter().map(|r| r.key()).collect();
+    println!(
+        "{}: max tracking error {:.2} m, {:.2} s at the tyre friction limit, max |a_lat| {:.2} m/s^2{}",
+        if v.valid { "valid" } else { "INVALID" },
+        v.max_tracking_error_m,
+        v.friction_limit_s,
+        v.max_abs_accel_lat,
+        if reasons.is_empty() { String::new() } else { format!(" ({})", reasons.join(", ")) }
+    );
     Ok(())
 }
