@@ -51,20 +51,37 @@ fn killed_training_resumes_to_the_same_model_and_renders() {
     let a = std::fs::read(whole.join("checkpoint.bin")).unwrap();
     let b = std::fs::read(killed.join("checkpoint.bin")).unwrap();
     assert!(a == b, "resumed training state differs from the uninterrupted run");
-    assert_eq!(std::fs::read(whole.join("background.ply")).unwrap(), std::fs::read(killed.join("background.ply")).unwrap());
+    assert_eq!(
+        std::fs::read(whole.join("background.ply")).unwrap(),
+        std::fs::read(killed.join("background.ply")).unwrap()
+    );
 
     let report = ok(carla_gs(&["eval-recon", s(&whole), s(&scene), "--json"]));
     let v: serde_json::Value = serde_json::from_str(&report).unwrap();
     assert_eq!(v["views"], 4, "frames 0 and 8 of two cameras are held out");
     assert!(v["psnr"]["mean"].as_f64().unwrap() > 10.0);
     let png = tmp.path().join("shifted.png");
-    let out = ok(carla_gs(&["render", s(&whole), "--scene", s(&scene), "--camera", "FRONT", "--frame", "3", "--shift-m", "1.0", "--out", s(&png)]));
+    let out = ok(carla_gs(&[
+        "render",
+        s(&whole),
+        "--scene",
+        s(&scene),
+        "--camera",
+        "FRONT",
+        "--frame",
+        "3",
+        "--shift-m",
+        "1.0",
+        "--out",
+        s(&png),
+    ]));
     assert!(out.contains("+1.00 m"), "{out}");
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (96, 64));
 
     // Bad arguments are named.
-    let out = carla_gs(&["render", s(&whole), "--scene", s(&scene), "--camera", "REAR", "--frame", "3", "--out", s(&png)]);
+    let out =
+        carla_gs(&["render", s(&whole), "--scene", s(&scene), "--camera", "REAR", "--frame", "3", "--out", s(&png)]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--camera REAR"));
     std::fs::write(&cfg, "[loss]\nnormals = 1.0\n").unwrap();

@@ -87,6 +87,9 @@ pub fn markdown(rows: &[Row], iterations: usize) -> String {
             r.train_seconds
         );
     }
-    s += &format!("\n{iterations} iterations per row, same seed and split; held-out views: {}.\n", rows.first().map_or(0, |r| r.eval.views));
+    s += &format!(
+        "\n{iterations} iterations per row, same seed and split; held-out views: {}.\n",
+        rows.first().map_or(0, |r| r.eval.views)
+    );
     s
 }

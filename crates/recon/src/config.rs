@@ -166,8 +166,14 @@ impl TrainConfig {
             return Err("densify.interval and sh_degree_interval must be positive".into());
         }
         let d = &self.densify;
-        if !(0.0..=1.0).contains(&d.from) || !(0.0..=1.0).contains(&d.until) || !(0.0..=1.0).contains(&d.opacity_reset_every) {
-            return Err("densify.from, densify.until and densify.opacity_reset_every are fractions of the iterations (0 to 1)".into());
+        if !(0.0..=1.0).contains(&d.from)
+            || !(0.0..=1.0).contains(&d.until)
+            || !(0.0..=1.0).contains(&d.opacity_reset_every)
+        {
+            return Err(
+                "densify.from, densify.until and densify.opacity_reset_every are fractions of the iterations (0 to 1)"
+                    .into(),
+            );
         }
         if self.sky_res == 0 {
             return Err("sky_res must be positive".into());

@@ -4,7 +4,9 @@
 //! or (after the first opacity reset) too wide on screen or in the world, are pruned; opacities are
 //! reset to at most 0.01 at intervals. New rows get zero optimiser moments. The gradient is
 //! converted from pixels to normalised device units (`x 0.5 max(W, H)`, as gsplat does) so the
-//! 3DGS threshold (2e-4) keeps its meaning at any image size.
+//! 3DGS threshold (2e-4) keeps its meaning at any image size. An actor's Gaussians must stay in
+//! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
+//! box are pruned, so a car's model cannot smear into the street it drives through.
 
 use crate::config::DensifyConfig;
 use crate::model::{push_row, push_zeros, retain};
@@ -70,6 +72,7 @@ pub fn densify_and_prune(
     extent: f64,
     grow: bool,
     prune_big: bool,
+    actor_box: Option<[f64; 3]>,
     seed: u64,
 ) -> Counts {
     let n = g.len();
@@ -115,7 +118,11 @@ pub fn densify_and_prune(
         let big = prune_big
             && ((old && stats.max_radius[i] > cfg.max_screen_size)
                 || max_scale(g, i) > cfg.max_world_fraction * extent);
-        if (old && remove[i]) || transparent || big {
+        let outside = actor_box.is_some_and(|size| {
+            (0..3).any(|a| g.means[i][a].abs() > 0.55 * size[a])
+                || max_scale(g, i) > 0.5 * size.iter().fold(0.0f64, |m, v| m.max(*v))
+        });
+        if (old && remove[i]) || transparent || big || outside {
             keep[i] = false;
             counts.pruned += usize::from(!(old && remove[i]));
         }
@@ -181,7 +188,7 @@ mod tests {
         m.means[0] = [1.0; 3];
         let stats = Stats { grad_sum: vec![1.0, 1.0, 0.0, 0.0], seen: vec![1; 4], max_radius: vec![1.0; 4] };
         let cfg = DensifyConfig::default();
-        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &cfg, 10.0, true, false, 7);
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &cfg, 10.0, true, false, None, 7);
         assert_eq!(c, Counts { cloned: 1, split: 1, pruned: 1 });
         // kept: 0 (clone source), 3, clone of 0, two halves of 1
         assert_eq!(g.len(), 5);
@@ -190,5 +197,9 @@ mod tests {
         assert_eq!(m.means[2], [0.0; 3], "new rows start with zero moments");
         assert!((g.log_scales[3][0].exp() - 2.0 / 1.6).abs() < 1e-12);
         assert!(g.validate().is_ok());
+        // In a 1 m box, the split halves (scale 1.25) are too wide and are pruned.
+        let stats = Stats { grad_sum: vec![0.0; 5], seen: vec![1; 5], max_radius: vec![1.0; 5] };
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &cfg, 10.0, true, false, Some([1.0; 3]), 7);
+        assert_eq!((c.pruned, g.len()), (2, 3));
     }
 }

@@ -29,8 +29,8 @@ pub mod priors;
 pub mod session;
 pub mod sh_rotate;
 pub mod sky;
-pub mod targets;
 pub mod ssim;
+pub mod targets;
 pub mod train;
 pub mod view;
 

@@ -2,7 +2,8 @@
 //!
 //! * photometric: `(1 - l) L1 + l (1 - SSIM)`, `l = 0.2`, on the composite
 //!   `rgb + sky * (1 - alpha)`;
-//! * depth: L1 between rendered expected depth and the depth prior where the prior has a value;
+//! * depth: relative L1 `|d - d_prior| / d_prior` where the prior has a value (plain metres would
+//!   let the far half of a street, where LiDAR and stereo errors are largest, outweigh the rest);
 //! * normal (`L_normal`): masked mean of `1 - cos(n_r, n_ref)`; the rendered normal and the
 //!   reference are both in the **same OpenCV camera frame** (the original code compared a
 //!   world-frame render with a camera-frame reference);
@@ -159,8 +160,8 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
             for i in 0..n {
                 if dp[i] > 0.0 {
                     let d = r.depth[i] - dp[i];
-                    l += d.abs();
-                    g.depth[i] += w.depth * s * d.signum();
+                    l += d.abs() / dp[i];
+                    g.depth[i] += w.depth * s * d.signum() / dp[i];
                 }
             }
             parts.depth = l * s;

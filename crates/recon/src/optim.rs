@@ -63,16 +63,14 @@ impl Step {
 
     fn slice_with(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: &(dyn Fn(usize) -> f64 + Sync)) {
         const CHUNK: usize = 1 << 14;
-        p.par_chunks_mut(CHUNK)
-            .zip(m.par_chunks_mut(CHUNK))
-            .zip(v.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, ((p, m), v))| {
+        p.par_chunks_mut(CHUNK).zip(m.par_chunks_mut(CHUNK)).zip(v.par_chunks_mut(CHUNK)).enumerate().for_each(
+            |(c, ((p, m), v))| {
                 let base = c * CHUNK;
                 for i in 0..p.len() {
                     self.apply(&mut p[i], g[base + i], &mut m[i], &mut v[i], lr(base + i));
                 }
-            });
+            },
+        );
     }
 }
 

@@ -195,6 +195,8 @@ impl<'a, B: Backend> Trainer<'a, B> {
             let prune_big = reset > 0 && n > reset;
             let mut total = Counts::default();
             let st = &mut self.state;
+            let boxes: Vec<Option<[f64; 3]>> =
+                std::iter::once(None).chain(st.model.actors.iter().map(|a| Some(a.size_lwh))).collect();
             let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
             for (i, g) in sets.into_iter().enumerate() {
                 let seed = derive_seed(self.cfg.seed, 2, (n * 1000 + i) as u64);
@@ -207,6 +209,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
                     self.extent,
                     grow,
                     prune_big,
+                    boxes[i],
                     seed,
                 );
                 total.cloned += c.cloned;

@@ -16,7 +16,8 @@ fn synth_scene(dir: &Path) -> std::path::PathBuf {
 }
 
 fn small_config() -> TrainConfig {
-    let mut cfg = TrainConfig { iterations: 24, scale: 1.0, checkpoint_interval: 8, sh_degree_interval: 8, ..Default::default() };
+    let mut cfg =
+        TrainConfig { iterations: 24, scale: 1.0, checkpoint_interval: 8, sh_degree_interval: 8, ..Default::default() };
     cfg.densify.from = 0.15;
     cfg.densify.interval = 5;
     cfg.densify.until = 0.8;
@@ -27,7 +28,13 @@ fn small_config() -> TrainConfig {
     cfg
 }
 
-fn run(scene: &Path, out: &Path, cfg: &TrainConfig, resume: bool, stop_after: Option<usize>) -> recon::session::TrainSummary {
+fn run(
+    scene: &Path,
+    out: &Path,
+    cfg: &TrainConfig,
+    resume: bool,
+    stop_after: Option<usize>,
+) -> recon::session::TrainSummary {
     let none = |_: &recon::data::View| Ok(None);
     let req = TrainRequest { scene_dir: scene, out_dir: out, cfg: cfg.clone(), resume, stop_after, priors: &none };
     train(req, Cpu, &ProgressBar::hidden()).expect("training runs")
@@ -58,7 +65,8 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
     let mut other = cfg.clone();
     other.seed = 9;
     let none = |_: &recon::data::View| Ok(None);
-    let req = TrainRequest { scene_dir: &scene, out_dir: &parts, cfg: other, resume: true, stop_after: None, priors: &none };
+    let req =
+        TrainRequest { scene_dir: &scene, out_dir: &parts, cfg: other, resume: true, stop_after: None, priors: &none };
     let err = train(req, Cpu, &ProgressBar::hidden()).err().expect("config mismatch refused").to_string();
     assert!(err.contains("config.toml"), "{err}");
     // A damaged checkpoint is refused by name.
@@ -67,7 +75,14 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
     let n = bytes.len();
     bytes.truncate(n - 100);
     std::fs::write(&ck, &bytes).unwrap();
-    let req = TrainRequest { scene_dir: &scene, out_dir: &parts, cfg: cfg.clone(), resume: true, stop_after: None, priors: &none };
+    let req = TrainRequest {
+        scene_dir: &scene,
+        out_dir: &parts,
+        cfg: cfg.clone(),
+        resume: true,
+        stop_after: None,
+        priors: &none,
+    };
     let err = train(req, Cpu, &ProgressBar::hidden()).err().expect("damaged checkpoint refused").to_string();
     assert!(err.contains("checkpoint.bin") && err.contains("corrupt"), "{err}");
 }

@@ -54,7 +54,10 @@ pub fn load_config(config: Option<&Path>) -> anyhow::Result<TrainConfig> {
 pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> {
     let loader = recon::targets::prior_loader(scene_dir)?;
     if !scene_dir.join("priors").is_dir() {
-        eprintln!("note: {} has no priors/ (run `carla-gs priors` first): depth, normal and geometry losses are off", scene_dir.display());
+        eprintln!(
+            "note: {} has no priors/ (run `carla-gs priors` first): depth, normal and geometry losses are off",
+            scene_dir.display()
+        );
     }
     Ok(loader)
 }
@@ -220,7 +223,9 @@ pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
     let priors = priors_of(&a.scene)?;
     let bar = |name: &str| {
         let pb = ProgressBar::new(0);
-        pb.set_style(ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} ({eta}) {msg}").expect("valid template"));
+        pb.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} ({eta}) {msg}").expect("valid template"),
+        );
         pb.set_prefix(name.to_string());
         pb
     };
