@@ -69,7 +69,7 @@ fn cell(m: &Option<crate::eval::Mean>, digits: usize) -> String {
 
 /// Table III as Markdown.
 pub fn markdown(rows: &[Row], iterations: usize) -> String {
-    let mut s = format!(
+    let mut s = String::from(
         "| setting | PSNR (dB) | SSIM | Normal Cos MAE vs GT (M) | Normal L1 MAE vs GT (M) | Normal Cos MAE vs GT (all) | Normal Cos MAE vs prior (M) | Gaussians | train s |\n|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in rows {

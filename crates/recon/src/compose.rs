@@ -8,6 +8,9 @@
 //! means, the transpose of the left-multiplication matrix of `q_yaw` for quaternions, `M_l` for
 //! SH. Only the first `sh_coeffs(active_degree)` coefficients are drawn (the SH schedule).
 
+// Index loops mirror the per-component formulas in the comments above.
+#![allow(clippy::needless_range_loop)]
+
 use crate::model::{clear, SceneModel};
 use crate::pose::{box_pose_at, BoxPose};
 use crate::sh_rotate::ShRotation;

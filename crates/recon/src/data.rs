@@ -36,7 +36,7 @@ impl View {
 
 /// Whether frame `frame` is held out under the every-n-th split (`n = 0`: none).
 pub fn is_held_out(frame: usize, every: usize) -> bool {
-    every > 0 && frame % every == 0
+    every > 0 && frame.is_multiple_of(every)
 }
 
 /// Loads an image as RGB in 0..1, resized to `width x height` (area-like triangle filter).

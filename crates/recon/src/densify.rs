@@ -8,6 +8,9 @@
 //! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
 //! box are pruned, so a car's model cannot smear into the street it drives through.
 
+// Index loops mirror the per-component formulas in the comments above.
+#![allow(clippy::needless_range_loop)]
+
 use crate::config::DensifyConfig;
 use crate::model::{push_row, push_zeros, retain};
 use crate::optim::AdamState;

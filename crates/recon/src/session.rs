@@ -110,7 +110,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
             recent.pop_front();
         }
         let n = trainer.state.next_iteration;
-        if n % 10 == 0 || n == end {
+        if n.is_multiple_of(10) || n == end {
             progress.set_message(format!(
                 "loss {:.4} psnr {:.2} dB  {} gaussians",
                 rep.loss.total, rep.psnr, rep.gaussians
@@ -120,7 +120,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
         if let Some(c) = rep.densified {
             tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
         }
-        if cfg.checkpoint_interval > 0 && n % cfg.checkpoint_interval == 0 && n < end {
+        if cfg.checkpoint_interval > 0 && n.is_multiple_of(cfg.checkpoint_interval) && n < end {
             checkpoint::save(&ckpt_path, &trainer.state)?;
         }
     }

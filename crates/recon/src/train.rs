@@ -190,7 +190,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             return None;
         }
         let mut out = None;
-        if n > from && n % d.interval == 0 {
+        if n > from && n.is_multiple_of(d.interval) {
             let grow = self.state.model.gaussian_count() < d.max_gaussians;
             let prune_big = reset > 0 && n > reset;
             let mut total = Counts::default();
@@ -224,7 +224,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             }
             out = Some(total);
         }
-        if reset > 0 && n % reset == 0 {
+        if reset > 0 && n.is_multiple_of(reset) {
             let st = &mut self.state;
             let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
             reset_opacity(&mut sets, &mut st.adam);

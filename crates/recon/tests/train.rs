@@ -67,7 +67,7 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
     let none = |_: &recon::data::View| Ok(None);
     let req =
         TrainRequest { scene_dir: &scene, out_dir: &parts, cfg: other, resume: true, stop_after: None, priors: &none };
-    let err = train(req, Cpu, &ProgressBar::hidden()).err().expect("config mismatch refused").to_string();
+    let err = train(req, Cpu, &ProgressBar::hidden()).expect_err("config mismatch refused").to_string();
     assert!(err.contains("config.toml"), "{err}");
     // A damaged checkpoint is refused by name.
     let ck = parts.join("checkpoint.bin");
@@ -83,7 +83,7 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
         stop_after: None,
         priors: &none,
     };
-    let err = train(req, Cpu, &ProgressBar::hidden()).err().expect("damaged checkpoint refused").to_string();
+    let err = train(req, Cpu, &ProgressBar::hidden()).expect_err("damaged checkpoint refused").to_string();
     assert!(err.contains("checkpoint.bin") && err.contains("corrupt"), "{err}");
 }
 
