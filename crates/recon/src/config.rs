@@ -57,7 +57,9 @@ pub struct DensifyConfig {
     /// Opacities are reset every `opacity_reset_every x iterations` (3DGS: 3000 of 30000).
     pub opacity_reset_every: f64,
     pub prune_opacity: f64,
-    /// After the first opacity reset: prune Gaussians wider than this on screen (pixels)...
+    /// After the first opacity reset: prune Gaussians wider than this on screen (pixels; 0: off,
+    /// the default, because a street camera sees kerbs, parked cars and walls a metre or two away,
+    /// whose Gaussians are legitimately wide on screen)...
     pub max_screen_size: f64,
     /// ...or larger than this fraction of the scene extent in the world.
     pub max_world_fraction: f64,
@@ -124,7 +126,7 @@ impl Default for DensifyConfig {
             percent_dense: 0.01,
             opacity_reset_every: 0.1,
             prune_opacity: 0.005,
-            max_screen_size: 60.0,
+            max_screen_size: 0.0,
             max_world_fraction: 0.1,
             max_gaussians: 200_000,
         }

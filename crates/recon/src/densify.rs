@@ -119,7 +119,7 @@ pub fn densify_and_prune(
         let old = i < n;
         let transparent = sigmoid(g.opacity_logits[i]) < cfg.prune_opacity;
         let big = prune_big
-            && ((old && stats.max_radius[i] > cfg.max_screen_size)
+            && ((old && cfg.max_screen_size > 0.0 && stats.max_radius[i] > cfg.max_screen_size)
                 || max_scale(g, i) > cfg.max_world_fraction * extent);
         let outside = actor_box.is_some_and(|size| {
             (0..3).any(|a| g.means[i][a].abs() > 0.55 * size[a])

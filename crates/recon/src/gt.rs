@@ -36,7 +36,9 @@ fn gunzip(path: &Path) -> Result<Vec<u8>, ReconError> {
     Ok(out)
 }
 
-fn resample<T: Copy>(src: &[T], sw: usize, sh: usize, w: usize, h: usize) -> Vec<T> {
+/// Nearest-pixel resampling of a `sw x sh` map to `w x h` (each output pixel takes the source
+/// pixel under its centre; no blending across edges).
+pub fn resample<T: Copy>(src: &[T], sw: usize, sh: usize, w: usize, h: usize) -> Vec<T> {
     (0..w * h)
         .map(|i| {
             let (x, y) = (i % w, i / w);

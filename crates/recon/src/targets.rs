@@ -6,33 +6,23 @@
 
 use crate::data::{PriorLoader, View};
 use crate::error::ReconError;
+use crate::gt::resample;
 use crate::loss::{geo_weights, Targets};
 use crate::priors::{PriorIndex, PriorMaps};
 use std::path::{Path, PathBuf};
 
-fn nearest<T: Copy>(src: &[T], sw: usize, sh: usize, w: usize, h: usize) -> Vec<T> {
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let sx = (((x as f64 + 0.5) * sw as f64 / w as f64) as usize).min(sw - 1);
-            let sy = (((y as f64 + 0.5) * sh as f64 / h as f64) as usize).min(sh - 1);
-            src[sy * sw + sx]
-        })
-        .collect()
-}
-
 /// Targets (without the image) from prior maps, at `w x h`.
 pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
-    let depth: Vec<f64> = nearest(&p.depth, p.width, p.height, w, h)
+    let depth: Vec<f64> = resample(&p.depth, p.width, p.height, w, h)
         .iter()
         .map(|d| if d.is_finite() && *d > 0.0 { *d as f64 } else { 0.0 })
         .collect();
     // Waymo camera (x fwd, y left, z up) -> OpenCV (x right, y down, z fwd).
-    let normal: Vec<[f64; 3]> = nearest(&p.normal, p.width, p.height, w, h)
+    let normal: Vec<[f64; 3]> = resample(&p.normal, p.width, p.height, w, h)
         .iter()
         .map(|n| [-(n[1] as f64), -(n[2] as f64), n[0] as f64])
         .collect();
-    let mask = nearest(&p.mask, p.width, p.height, w, h);
+    let mask = resample(&p.mask, p.width, p.height, w, h);
     let geo = geo_weights(&depth, &mask, w, h);
     Targets { rgb: vec![], depth: Some(depth), normal: Some(normal), mask: Some(mask), geo_weight: Some(geo) }
 }

@@ -20,16 +20,8 @@ pub struct TrainArgs {
     scene: PathBuf,
     #[arg(long)]
     out: PathBuf,
-    /// TOML training config (docs/recon.md); flags below override it.
-    #[arg(long)]
-    config: Option<PathBuf>,
-    #[arg(long)]
-    iters: Option<usize>,
-    /// Train at this fraction of the image size.
-    #[arg(long)]
-    scale: Option<f64>,
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    settings: Settings,
     /// Continue from <out>/checkpoint.bin (same settings required).
     #[arg(long)]
     resume: bool,
@@ -40,13 +32,35 @@ pub struct TrainArgs {
     stop_after: Option<usize>,
 }
 
-pub fn load_config(config: Option<&Path>) -> anyhow::Result<TrainConfig> {
-    match config {
-        Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
-            TrainConfig::from_toml(&text).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))
-        }
-        None => Ok(TrainConfig::default()),
+/// The training settings: a TOML file and the flags that override it.
+#[derive(clap::Args)]
+pub struct Settings {
+    /// TOML training config (docs/recon.md); the flags below override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long)]
+    iters: Option<usize>,
+    /// Train at this fraction of the image size.
+    #[arg(long)]
+    scale: Option<f64>,
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+impl Settings {
+    pub fn config(&self) -> anyhow::Result<TrainConfig> {
+        let mut cfg = match &self.config {
+            Some(p) => {
+                let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+                TrainConfig::from_toml(&text).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?
+            }
+            None => TrainConfig::default(),
+        };
+        cfg.iterations = self.iters.unwrap_or(cfg.iterations);
+        cfg.scale = self.scale.unwrap_or(cfg.scale);
+        cfg.seed = self.seed.unwrap_or(cfg.seed);
+        cfg.validate().map_err(|e| anyhow::anyhow!("settings: {e}"))?;
+        Ok(cfg)
     }
 }
 
@@ -64,17 +78,7 @@ pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> 
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {
     let Device::Cpu = a.device;
-    let mut cfg = load_config(a.config.as_deref())?;
-    if let Some(n) = a.iters {
-        cfg.iterations = n;
-    }
-    if let Some(s) = a.scale {
-        cfg.scale = s;
-    }
-    if let Some(s) = a.seed {
-        cfg.seed = s;
-    }
-    cfg.validate().map_err(|e| anyhow::anyhow!("settings: {e}"))?;
+    let cfg = a.settings.config()?;
     let priors = priors_of(&a.scene)?;
     let pb = ProgressBar::new(cfg.iterations as u64);
     pb.set_style(
@@ -197,29 +201,13 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
 pub struct AblateArgs {
     scene: PathBuf,
     #[arg(long)]
-    iters: Option<usize>,
-    #[arg(long)]
     out: PathBuf,
-    #[arg(long)]
-    config: Option<PathBuf>,
-    #[arg(long)]
-    scale: Option<f64>,
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    settings: Settings,
 }
 
 pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
-    let mut cfg = load_config(a.config.as_deref())?;
-    if let Some(n) = a.iters {
-        cfg.iterations = n;
-    }
-    if let Some(s) = a.scale {
-        cfg.scale = s;
-    }
-    if let Some(s) = a.seed {
-        cfg.seed = s;
-    }
-    cfg.validate().map_err(|e| anyhow::anyhow!("settings: {e}"))?;
+    let cfg = a.settings.config()?;
     let priors = priors_of(&a.scene)?;
     let bar = |name: &str| {
         let pb = ProgressBar::new(0);
