@@ -82,6 +82,16 @@ pub fn densify_and_prune(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut counts = Counts::default();
     let mut remove = vec![false; n];
+    let avg: Vec<f64> =
+        (0..n).map(|i| if stats.seen[i] > 0 { stats.grad_sum[i] / stats.seen[i] as f64 } else { 0.0 }).collect();
+    let mut sorted = avg.clone();
+    sorted.sort_by(f64::total_cmp);
+    tracing::debug!(
+        median = sorted.get(n / 2).copied().unwrap_or(0.0),
+        p99 = sorted.get(n * 99 / 100).copied().unwrap_or(0.0),
+        threshold = cfg.grad_threshold,
+        "average screen-space gradients"
+    );
     if grow {
         for i in 0..n {
             let avg = if stats.seen[i] > 0 { stats.grad_sum[i] / stats.seen[i] as f64 } else { 0.0 };
