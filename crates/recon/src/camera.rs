@@ -6,6 +6,18 @@
 use crate::error::ReconError;
 use scene::Transform3;
 
+/// A camera-frame normal in Waymo camera axes (the scene's convention, used by priors and ground
+/// truth) re-expressed in the OpenCV axes the rasterizer renders normals in, through
+/// `scene::frames::cv_from_waymo_camera` (the one place that defines the axis change).
+pub fn cv_normal_from_waymo(n: [f32; 3]) -> [f64; 3] {
+    let v = scene::frames::cv_from_waymo_camera().transform_vector(scene::glam::DVec3::new(
+        n[0] as f64,
+        n[1] as f64,
+        n[2] as f64,
+    ));
+    v.to_array()
+}
+
 /// The image size at `scale` (at least one pixel).
 pub fn scaled_size(width: u32, height: u32, scale: f64) -> (u32, u32) {
     (((width as f64 * scale).round() as u32).max(1), ((height as f64 * scale).round() as u32).max(1))
@@ -52,6 +64,14 @@ pub fn pixel_ray(cam: &splat::Camera, x: usize, y: usize) -> [f64; 3] {
 mod tests {
     use super::*;
     use glam::DVec3;
+
+    #[test]
+    fn waymo_normals_become_opencv_normals() {
+        // Waymo forward is OpenCV +z, left is -x, up is -y.
+        assert_eq!(cv_normal_from_waymo([1.0, 0.0, 0.0]), [0.0, 0.0, 1.0]);
+        assert_eq!(cv_normal_from_waymo([0.0, 1.0, 0.0]), [-1.0, 0.0, 0.0]);
+        assert_eq!(cv_normal_from_waymo([0.0, 0.0, 1.0]), [0.0, -1.0, 0.0]);
+    }
 
     #[test]
     fn a_world_point_lands_where_the_scene_camera_projects_it() {

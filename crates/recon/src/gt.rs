@@ -74,8 +74,8 @@ pub fn load(
         });
     }
     let f: Vec<f32> = nb.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-    // Waymo camera (x fwd, y left, z up) -> OpenCV (x right, y down, z fwd).
-    let normals: Vec<[f64; 3]> = f.chunks_exact(3).map(|n| [-(n[1] as f64), -(n[2] as f64), n[0] as f64]).collect();
+    let normals: Vec<[f64; 3]> =
+        f.chunks_exact(3).map(|n| crate::camera::cv_normal_from_waymo([n[0], n[1], n[2]])).collect();
     let ipath = gt.join(format!("{stem}.instance.u16.gz"));
     let ib = gunzip(&ipath)?;
     if ib.len() != sw * sh * 2 {

@@ -17,11 +17,8 @@ pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
         .iter()
         .map(|d| if d.is_finite() && *d > 0.0 { *d as f64 } else { 0.0 })
         .collect();
-    // Waymo camera (x fwd, y left, z up) -> OpenCV (x right, y down, z fwd).
-    let normal: Vec<[f64; 3]> = resample(&p.normal, p.width, p.height, w, h)
-        .iter()
-        .map(|n| [-(n[1] as f64), -(n[2] as f64), n[0] as f64])
-        .collect();
+    let normal: Vec<[f64; 3]> =
+        resample(&p.normal, p.width, p.height, w, h).iter().map(|n| crate::camera::cv_normal_from_waymo(*n)).collect();
     let mask = resample(&p.mask, p.width, p.height, w, h);
     let geo = geo_weights(&depth, &mask, w, h);
     Targets { rgb: vec![], depth: Some(depth), normal: Some(normal), mask: Some(mask), geo_weight: Some(geo) }
