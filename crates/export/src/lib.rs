@@ -1,0 +1,15 @@
+//! `export`: writers of standard formats that other tools open, so a carla-gs corner case can be
+//! replayed outside carla-gs, and readers of the same files for round-trip tests.
+//!
+//! * [`xosc`]: OpenSCENARIO 1.2 (`.xosc`) for one executed corner case: the ego, the adversary and
+//!   optionally every other logged actor follow timed world-frame trajectories
+//!   (`docs/export.md`).
+//!
+//! Depends on `scene` only: it exports what the stages wrote, whoever wrote it.
+
+pub mod error;
+pub mod xml;
+pub mod xosc;
+
+pub use error::ExportError;
+pub use xosc::{read_xosc, write_xosc, write_xosc_file, XoscCase, XoscEntity, XoscOptions, XoscVertex};
