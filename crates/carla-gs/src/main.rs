@@ -46,6 +46,12 @@ enum Command {
     Ablate(cmd::recon::AblateArgs),
     /// Geometry priors per image (depth, normals, ground/object masks) under <scene>/priors/.
     Priors(cmd::priors::Args),
+    /// One corner case end to end: reason -> simulate -> metrics -> OpenSCENARIO -> videos.
+    Run(cmd::run::RunArgs),
+    /// Everything on embedded defaults: synthesise, train, one case per showcased behaviour, videos, report.
+    Demo(cmd::demo::Args),
+    /// Render an executed corner case as video (one layout).
+    Video(cmd::run::VideoCmdArgs),
 }
 
 fn main() -> ExitCode {
@@ -75,6 +81,9 @@ fn main() -> ExitCode {
         Command::Render(a) => cmd::recon::render(a),
         Command::Ablate(a) => cmd::recon::ablate(a),
         Command::Priors(a) => cmd::priors::run(a),
+        Command::Run(a) => cmd::run::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
+        Command::Video(a) => cmd::run::video(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

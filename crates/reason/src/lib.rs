@@ -42,6 +42,9 @@ pub struct ReasonOptions {
     pub temperature: f64,
     /// Outcome of a previous attempt, appended to the Zone agent's prompt (closed-loop refinement).
     pub feedback: Option<String>,
+    /// Only this track may be the adversary (`carla-gs run --adversary`); the agents see no
+    /// other candidate vehicle (every actor still counts for contacts in the simulator).
+    pub adversary: Option<String>,
 }
 
 impl Default for ReasonOptions {
@@ -57,6 +60,7 @@ impl Default for ReasonOptions {
             max_retries: 2,
             temperature: 0.7,
             feedback: None,
+            adversary: None,
         }
     }
 }
@@ -144,7 +148,12 @@ pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome,
         )));
     }
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
-    let world = World::new(scene, o.t0, o.radius).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
+    let world = World::for_options(scene, o).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
+    if let (Some(id), true) = (&o.adversary, world.vehicles.is_empty()) {
+        return Ok(Outcome::NoFeasible {
+            reason: format!("track `{id}` is not a vehicle within {:.0} m of the ego at t0 = {:.2} s", o.radius, o.t0),
+        });
+    }
     let out = match agent {
         Agent::Planner => agents::run_planner(&world, o),
         Agent::Llm(b) => agents::run_llm(&world, o, b)?,

@@ -106,6 +106,15 @@ impl<'a> World<'a> {
         })
     }
 
+    /// The world at `o.t0` within `o.radius`, keeping only `o.adversary` as a candidate when set.
+    pub fn for_options(scene: &'a Scene, o: &crate::ReasonOptions) -> Option<Self> {
+        let mut w = World::new(scene, o.t0, o.radius)?;
+        if let Some(id) = &o.adversary {
+            w.vehicles.retain(|v| &v.id == id);
+        }
+        Some(w)
+    }
+
     pub fn vehicle(&self, id: &str) -> Option<&Vehicle> {
         self.vehicles.iter().find(|v| v.id == id)
     }

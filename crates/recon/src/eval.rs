@@ -15,10 +15,10 @@ use crate::model::SceneModel;
 use crate::view::draw;
 use rayon::prelude::*;
 use scene::Scene;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct ViewScore {
     pub frame: usize,
     pub camera: String,
@@ -36,7 +36,7 @@ pub struct ViewScore {
 }
 
 /// A mean and how many values it is over.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize)]
 pub struct Mean {
     pub mean: f64,
     pub count: usize,
@@ -47,7 +47,7 @@ fn mean(v: impl Iterator<Item = f64>) -> Option<Mean> {
     (n > 0).then(|| Mean { mean: s / n as f64, count: n })
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct EvalReport {
     pub views: usize,
     pub psnr: Option<Mean>,

@@ -1,4 +1,5 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
+pub mod demo;
 pub mod eval_cases;
 pub mod ingest;
 pub mod inspect;
@@ -8,6 +9,7 @@ pub mod priors;
 pub mod progress;
 pub mod reason;
 pub mod recon;
+pub mod run;
 pub mod simulate;
 pub mod splat;
 pub mod synth;

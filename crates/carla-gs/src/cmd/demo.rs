@@ -1,0 +1,75 @@
+//! `carla-gs demo [--out demo-out]`: the whole pipeline on embedded defaults (`pipeline::demo`).
+
+use indicatif::{ProgressBar, ProgressStyle};
+use pipeline::demo::{run_demo, DemoConfig, DemoProgress};
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Where everything goes (reused by the next run: finished stages are cached).
+    #[arg(long, default_value = "demo-out")]
+    out: PathBuf,
+    /// Training iterations (default: the demo's 1500).
+    #[arg(long)]
+    iters: Option<usize>,
+    /// The agent that makes the corner cases: planner, rule or random (LLM agents: use `run`).
+    #[arg(long, default_value = "planner")]
+    agent: String,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+struct Terminal;
+
+impl DemoProgress for Terminal {
+    fn stage(&self, name: &str) {
+        eprintln!("demo: {name}");
+    }
+
+    fn bar(&self) -> ProgressBar {
+        let pb = ProgressBar::new(0);
+        pb.set_style(
+            ProgressStyle::with_template("  [{bar:30}] {pos}/{len} ({eta}) {msg}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        pb
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut cfg = DemoConfig::default();
+    if let Some(n) = a.iters {
+        cfg.train.iterations = n;
+    }
+    cfg.agent = a.agent.parse().map_err(anyhow::Error::msg)?;
+    anyhow::ensure!(
+        !cfg.agent.is_llm(),
+        "--agent {}: the demo runs planner, rule or random; LLM agents run with `carla-gs run`",
+        cfg.agent.as_str()
+    );
+    cfg.seed = a.seed;
+    let r = run_demo(&cfg, &a.out, &Terminal)?;
+    println!("stage                          seconds");
+    for t in &r.timings {
+        println!("{:<30} {:>8.1}{}", t.stage, t.seconds, if t.cached { "  (cached)" } else { "" });
+    }
+    println!("total this run                 {:>8.1}", r.total_seconds);
+    for (b, s) in &r.cases {
+        match &s.metrics {
+            Some(m) => println!(
+                "{:<22} {} zone hit {}, success {}, MinTTC {:.2} s",
+                b.as_str(),
+                if m.validity.valid { "valid," } else { "INVALID," },
+                m.zone_hit,
+                m.success_center,
+                m.min_ttc_center_s
+            ),
+            None => println!("{:<22} no corner case ({} attempts)", b.as_str(), s.attempts.len()),
+        }
+    }
+    let report = a.out.join(pipeline::report::REPORT_FILE);
+    let shown = std::fs::canonicalize(&report).unwrap_or(report);
+    println!("report: {}", shown.display());
+    Ok(())
+}

@@ -1,0 +1,210 @@
+//! `carla-gs run` (one corner case end to end) and `carla-gs video` (re-render an executed case):
+//! argument parsing around the `pipeline` and `render` crates.
+
+use super::progress::count_bar;
+use anyhow::Context;
+use cases::spec::{AgentName, T0Spec};
+use pipeline::case::{CaseRequest, T0Choice};
+use pipeline::run::{RenderSettings, RunInputs};
+use recon::backend::Cpu;
+use std::path::PathBuf;
+
+/// Video settings shared by `run`, `video` and `demo`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct VideoArgs {
+    /// Comma-separated layouts: single:<CAMERA>, front3, compare:<CAMERA>.
+    #[arg(long, default_value = "compare:FRONT,front3")]
+    pub layouts: String,
+    /// Video frame rate (poses are interpolated between the log's frames).
+    #[arg(long, default_value_t = 24.0)]
+    pub fps: f64,
+    /// Fraction of the cameras' image size to render at.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Seconds of log shown before the corner case starts.
+    #[arg(long, default_value_t = 1.5)]
+    pub lead_in: f64,
+    /// Write PNG frames instead of MP4 even when ffmpeg is installed.
+    #[arg(long)]
+    pub png: bool,
+}
+
+impl VideoArgs {
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            layouts: self.layouts.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect(),
+            fps: self.fps,
+            lead_in_s: self.lead_in,
+            scale: self.scale,
+            png_only: self.png,
+            ..RenderSettings::default()
+        }
+    }
+}
+
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// The scene directory.
+    scene: PathBuf,
+    /// The trained model directory (`carla-gs train`).
+    #[arg(long)]
+    model: PathBuf,
+    /// The dangerous behaviour.
+    #[arg(long)]
+    behavior: String,
+    /// planner, local, openai, rule or random.
+    #[arg(long, default_value = "planner")]
+    agent: String,
+    /// Only this track may be the adversary.
+    #[arg(long)]
+    adversary: Option<String>,
+    /// Analysis time (s from the first frame); default: search every 0.5 s for the first
+    /// physically valid, successful case.
+    #[arg(long)]
+    t0: Option<f64>,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[arg(long, default_value_t = 3)]
+    refine_rounds: usize,
+    /// Seeds tried at each t0 (seed, seed+1, ...) before moving on.
+    #[arg(long, default_value_t = 3)]
+    seeds_per_t0: usize,
+    #[command(flatten)]
+    video: VideoArgs,
+    #[command(flatten)]
+    llm: super::llm::LlmArgs,
+}
+
+pub fn run(a: RunArgs) -> anyhow::Result<()> {
+    let scene = scene::load_scene(&a.scene)?;
+    let (model, _) = recon::model_io::load_model(&a.model)?;
+    let agent: AgentName = a.agent.parse().map_err(anyhow::Error::msg)?;
+    let behavior = a.behavior.parse().map_err(|e: String| anyhow::anyhow!("--behavior: {e}"))?;
+    let req = CaseRequest {
+        behavior,
+        agent,
+        adversary: a.adversary.clone(),
+        seed: a.seed,
+        seeds_per_t0: a.seeds_per_t0,
+        refine_rounds: a.refine_rounds,
+    };
+    let t0 = match a.t0 {
+        Some(t) => T0Choice::At(t),
+        None => T0Choice::Search(T0Spec::Every(0.5)),
+    };
+    let mut llm = match agent {
+        AgentName::Local => Some(a.llm.local()?),
+        AgentName::Openai => Some(a.llm.openai()?),
+        _ => None,
+    };
+    let settings = a.video.settings();
+    let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
+    let pb = count_bar("frames");
+    let s = pipeline::run::run(
+        &inputs,
+        &req,
+        &t0,
+        llm.as_mut().map(|b| b.as_mut() as &mut dyn reason::backend::Backend),
+        &pb,
+    )
+    .with_context(|| format!("run of {} failed", a.scene.display()))?;
+    pb.finish_and_clear();
+    print_run(&s, &a.out);
+    Ok(())
+}
+
+/// What a run did, for the terminal.
+pub fn print_run(s: &pipeline::run::RunSummary, out: &std::path::Path) {
+    let tried: Vec<String> = s
+        .attempts
+        .iter()
+        .map(|a| {
+            format!(
+                "t0={:.1}s seed {} {}{}",
+                a.t0_s,
+                a.seed,
+                a.status,
+                if a.valid && a.success { " (valid, success)" } else { "" }
+            )
+        })
+        .collect();
+    println!("attempts: {}", tried.join("; "));
+    let (Some(r), Some(m)) = (&s.result, &s.metrics) else {
+        println!("no corner case: no attempt produced one (reasons in {}/run.json)", out.display());
+        return;
+    };
+    let plan = &r.best().expect("chosen case has rounds").plan;
+    println!(
+        "case: {} at t0={:.1}s, adversary {} -> {} zone; {}; zone hit {}, success {}, MinTTC {:.2} s",
+        plan.behavior.as_str(),
+        r.spec.t0_s,
+        plan.adversary_track,
+        plan.target_zone.as_str(),
+        if m.validity.valid { "physically valid" } else { "INVALID" },
+        m.zone_hit,
+        m.success_center,
+        m.min_ttc_center_s
+    );
+    for p in &s.placement {
+        println!(
+            "placement t={:.2}s {}: IoU {:.3} ({} box px, {:.1} m from the logged box)",
+            p.t,
+            p.camera,
+            p.iou,
+            p.box_pixels,
+            p.offset_from_log_m.unwrap_or(f64::NAN)
+        );
+    }
+    for v in &s.videos {
+        println!("video {}: {} ({} frames)", v.layout, v.output.path.display(), v.output.frames);
+    }
+    for t in &s.timings {
+        println!("time {:<28} {:>8.1} s", t.stage, t.seconds);
+    }
+    println!("wrote {} ({})", out.display(), s.files.join(", "));
+}
+
+#[derive(clap::Args)]
+pub struct VideoCmdArgs {
+    /// The executed case (`executed.json`).
+    executed: PathBuf,
+    #[arg(long)]
+    scene: PathBuf,
+    #[arg(long)]
+    model: PathBuf,
+    /// Output `.mp4` (a `<stem>_frames/` PNG directory without ffmpeg); one layout.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    video: VideoArgs,
+}
+
+pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
+    let scene = scene::load_scene(&a.scene)?;
+    let (model, _) = recon::model_io::load_model(&a.model)?;
+    let executed = scene::executed::load_executed(&a.executed)?;
+    let settings = a.video.settings();
+    let layouts = settings.parsed_layouts()?;
+    let [layout] = layouts.as_slice() else {
+        anyhow::bail!("--layouts: `video` writes one layout, got {}", layouts.len())
+    };
+    let view = render::video::CaseView::new(&Cpu, &model, &scene, &executed)?;
+    let spec = render::video::VideoSpec {
+        layout: layout.clone(),
+        fps: settings.fps,
+        lead_in_s: settings.lead_in_s,
+        scale: settings.scale,
+        png_only: settings.png_only,
+        ..Default::default()
+    };
+    let pb = count_bar("frames");
+    let out = view.render_video(&spec, &a.out, &pb)?;
+    pb.finish_and_clear();
+    println!("wrote {} ({} frames, {}x{} at {} fps)", out.path.display(), out.frames, out.width, out.height, out.fps);
+    if let render::encode::VideoKind::PngSequence { why } = &out.kind {
+        println!("note: PNG frames, not MP4: {why}");
+    }
+    Ok(())
+}

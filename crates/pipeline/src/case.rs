@@ -1,0 +1,142 @@
+//! Choosing one corner case: reason -> simulate -> measure with closed-loop refinement (the
+//! `cases` runner) at one analysis time t0, or at each time of a search, keeping the first case
+//! that is physically valid, hits its zone and succeeds (centre TTC < 1 s); failing that, the best
+//! by (valid, zone hit, success, lower MinTTC). Every attempt is kept and reported, whatever
+//! became of it (no feasible vehicle, a failed stage, an invalid rollout).
+
+use cases::runner::{run_case, CaseConfig, CaseResult, Status};
+use cases::spec::{AgentName, CaseSpec, T0Spec};
+use reason::backend::Backend;
+use reason::ReasonOptions;
+use scene::{Behavior, Executed, Scene};
+use serde::{Deserialize, Serialize};
+
+/// Where to look for the case.
+#[derive(Clone, Debug, PartialEq)]
+pub enum T0Choice {
+    /// Seconds from the scene's first frame.
+    At(f64),
+    Search(T0Spec),
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CaseRequest {
+    pub behavior: Behavior,
+    pub agent: AgentName,
+    /// Only this track may be the adversary.
+    pub adversary: Option<String>,
+    pub seed: u64,
+    /// Seeds tried at each t0 (`seed`, `seed + 1`, ...): the planner's candidate order and the
+    /// LLM's sampling depend on it.
+    pub seeds_per_t0: usize,
+    pub refine_rounds: usize,
+}
+
+/// One analysis time tried.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Attempt {
+    pub t0_s: f64,
+    pub seed: u64,
+    /// `done`, `no_feasible` or `failed`.
+    pub status: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adversary: Option<String>,
+    pub valid: bool,
+    pub zone_hit: bool,
+    pub success: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_ttc_center_s: Option<f64>,
+}
+
+/// The outcome of a search: every attempt, and the chosen case when any produced one.
+pub struct Selection {
+    pub attempts: Vec<Attempt>,
+    pub chosen: Option<(CaseResult, Executed)>,
+}
+
+fn attempt_of(r: &CaseResult) -> Attempt {
+    let base = Attempt {
+        t0_s: r.spec.t0_s,
+        seed: r.spec.seed,
+        status: String::new(),
+        detail: None,
+        adversary: None,
+        valid: false,
+        zone_hit: false,
+        success: false,
+        min_ttc_center_s: None,
+    };
+    match &r.status {
+        Status::NoFeasible { reason } => Attempt { status: "no_feasible".into(), detail: Some(reason.clone()), ..base },
+        Status::Failed { stage, reason } => {
+            Attempt { status: "failed".into(), detail: Some(format!("{stage}: {reason}")), ..base }
+        }
+        Status::Done { .. } => {
+            let b = r.best().expect("a done case has rounds");
+            let m = &b.metrics;
+            Attempt {
+                status: "done".into(),
+                adversary: Some(b.plan.adversary_track.clone()),
+                valid: m.validity.valid,
+                zone_hit: m.zone_hit,
+                success: m.success_center,
+                min_ttc_center_s: m.min_ttc_center_s.is_finite().then_some(m.min_ttc_center_s),
+                ..base
+            }
+        }
+    }
+}
+
+fn rank(a: &Attempt) -> (bool, bool, bool, f64) {
+    (a.valid, a.zone_hit, a.success, -a.min_ttc_center_s.unwrap_or(f64::INFINITY))
+}
+
+/// Runs the request at every time of `t0` (seconds from the first frame) and chooses one case.
+pub fn select_case(
+    scene: &Scene,
+    req: &CaseRequest,
+    t0: &T0Choice,
+    mut backend: Option<&mut dyn Backend>,
+) -> Selection {
+    let times = match t0 {
+        T0Choice::At(t) => vec![*t],
+        T0Choice::Search(spec) => spec.times(scene),
+    };
+    let cfg = CaseConfig {
+        reason: ReasonOptions { adversary: req.adversary.clone(), ..ReasonOptions::default() },
+        rollout: sim::RolloutConfig::default(),
+        refine_rounds: req.refine_rounds,
+        simulate: Box::new(sim::simulate),
+    };
+    let mut attempts = Vec::new();
+    let mut chosen: Option<(usize, CaseResult, Executed)> = None;
+    let tries = times.iter().flat_map(|&t| (0..req.seeds_per_t0.max(1) as u64).map(move |k| (t, k)));
+    for (t, k) in tries {
+        let spec = CaseSpec {
+            scene_index: 0,
+            scene: scene.name.clone(),
+            behavior: req.behavior,
+            t0_s: t,
+            agent: req.agent,
+            seed: req.seed.wrapping_add(k),
+        };
+        let (result, executed) = run_case(scene, &spec, &cfg, backend.as_mut().map(|b| &mut **b as &mut dyn Backend));
+        let a = attempt_of(&result);
+        let good = a.valid && a.zone_hit && a.success;
+        if let Some(e) = executed {
+            let better = chosen
+                .as_ref()
+                .is_none_or(|(i, _, _)| rank(&a).partial_cmp(&rank(&attempts[*i])).is_some_and(|o| o.is_gt()));
+            if better {
+                chosen = Some((attempts.len(), result, e));
+            }
+        }
+        attempts.push(a);
+        if good {
+            break;
+        }
+    }
+    Selection { attempts, chosen: chosen.map(|(_, r, e)| (r, e)) }
+}

@@ -1,0 +1,234 @@
+//! `carla-gs demo`: everything on embedded defaults, on the CPU, in one command. A small synthetic
+//! street is generated (its seed is chosen so that each showcased behaviour has a physically
+//! valid case), its geometry priors computed, a Street-Gaussians model trained and scored on the
+//! held-out views, one corner case made per showcased behaviour (sudden braking, cut-in,
+//! opposing drift) with the default agent, simulated, exported and rendered, and
+//! `report.html` written with all of it and the stage timings.
+//!
+//! Every stage is cached (`cache`): its directory's marker holds the settings it was built from
+//! and the key of the stage before, so a second run with the same settings reuses everything
+//! and takes seconds, and a changed setting rebuilds that stage and the ones after it. A training
+//! run interrupted half-way resumes from its checkpoint.
+
+use crate::cache::{fresh, invalidate, mark};
+use crate::case::{CaseRequest, T0Choice};
+use crate::run::{run, RenderSettings, RunInputs, RunSummary};
+use crate::PipelineError;
+use cases::spec::{AgentName, T0Spec};
+use indicatif::ProgressBar;
+use recon::backend::Cpu;
+use recon::TrainConfig;
+use scene::Behavior;
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The demo's settings; `Default` is what `carla-gs demo` runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DemoConfig {
+    pub frames: usize,
+    pub cameras: usize,
+    pub width: u32,
+    pub height: u32,
+    /// The synthetic street's seed.
+    pub scene_seed: u64,
+    pub train: TrainConfig,
+    pub behaviors: Vec<Behavior>,
+    pub agent: AgentName,
+    pub seed: u64,
+    pub render: RenderSettings,
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        let mut train = TrainConfig::default();
+        train.iterations = 1500;
+        DemoConfig {
+            frames: 80,
+            cameras: 3,
+            width: 240,
+            height: 160,
+            scene_seed: 4,
+            train,
+            behaviors: vec![Behavior::SuddenBraking, Behavior::SuddenCutIn, Behavior::OpposingDrift],
+            agent: AgentName::Planner,
+            seed: 0,
+            render: RenderSettings::default(),
+        }
+    }
+}
+
+/// How long a stage took, and whether this run reused it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageTime {
+    pub stage: String,
+    /// Seconds of the build that produced the stage's outputs.
+    pub seconds: f64,
+    pub cached: bool,
+}
+
+/// What the demo produced (`demo.json`; the report is drawn from it).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct DemoResult {
+    pub config: DemoConfig,
+    pub out: PathBuf,
+    pub recon: recon::eval::EvalReport,
+    pub model: recon::model_io::ModelRecord,
+    pub cases: Vec<(Behavior, RunSummary)>,
+    pub timings: Vec<StageTime>,
+    pub total_seconds: f64,
+}
+
+/// Reports what the demo is doing (a stage starting, a progress bar to show).
+pub trait DemoProgress {
+    fn stage(&self, name: &str);
+    fn bar(&self) -> ProgressBar;
+}
+
+struct Stages<'a> {
+    timings: Vec<StageTime>,
+    progress: &'a dyn DemoProgress,
+}
+
+impl Stages<'_> {
+    /// Runs `build` unless `dir` already holds `key`'s outputs.
+    fn cached(
+        &mut self,
+        name: &str,
+        dir: &Path,
+        key: &Value,
+        build: impl FnOnce() -> Result<(), PipelineError>,
+    ) -> Result<(), PipelineError> {
+        if let Some(m) = fresh(dir, key) {
+            self.timings.push(StageTime { stage: name.into(), seconds: m.seconds, cached: true });
+            return Ok(());
+        }
+        self.progress.stage(name);
+        invalidate(dir);
+        let clock = Instant::now();
+        build()?;
+        let seconds = clock.elapsed().as_secs_f64();
+        mark(dir, key, seconds)?;
+        self.timings.push(StageTime { stage: name.into(), seconds, cached: false });
+        Ok(())
+    }
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> PipelineError + '_ {
+    move |e| PipelineError::Scene(scene::SceneError::io(path, e))
+}
+
+/// Runs the demo into `out` (created if needed) and writes `report.html` there.
+pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Result<DemoResult, PipelineError> {
+    let clock = Instant::now();
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let mut stages = Stages { timings: vec![], progress };
+    let scene_dir = out.join("scene");
+    let scene_key = json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
+        "height": cfg.height, "seed": cfg.scene_seed}, "version": 1});
+    stages.cached("synthesise scene", &scene_dir, &scene_key, || {
+        let sc = synth::SynthConfig {
+            frames: cfg.frames,
+            cameras: cfg.cameras,
+            width: cfg.width,
+            height: cfg.height,
+            seed: cfg.scene_seed,
+            force: true,
+            preview: false,
+        };
+        let pb = progress.bar();
+        pb.set_length(cfg.frames as u64);
+        synth::synthesize(&sc, &scene_dir, &mut |done, _| pb.set_position(done as u64))?;
+        pb.finish_and_clear();
+        Ok(())
+    })?;
+
+    let priors_dir = scene_dir.join(recon::priors::PRIORS_DIR);
+    let priors_key = json!({"scene": scene_key, "priors": {"seed": cfg.seed}});
+    stages.cached("geometry priors", &priors_dir, &priors_key, || {
+        let scene = scene::load_scene(&scene_dir)?;
+        let opts = recon::priors::PriorOptions { force: true, seed: cfg.seed, ..Default::default() };
+        let pb = progress.bar();
+        recon::priors::compute_priors(&scene_dir, &scene, &opts, &pb).map_err(|e| PipelineError::stage("priors", e))?;
+        pb.finish_and_clear();
+        Ok(())
+    })?;
+
+    let model_dir = out.join("model");
+    let train_key = json!({"priors": priors_key, "train": cfg.train});
+    stages.cached("train (CPU)", &model_dir, &train_key, || {
+        let priors = recon::targets::prior_loader(&scene_dir)?;
+        let resume = recon::model_io::load_config(&model_dir).is_ok_and(|c| c == cfg.train)
+            && model_dir.join("checkpoint.bin").is_file();
+        let pb = progress.bar();
+        let req = recon::session::TrainRequest {
+            scene_dir: &scene_dir,
+            out_dir: &model_dir,
+            cfg: cfg.train.clone(),
+            resume,
+            stop_after: None,
+            priors: priors.as_ref(),
+        };
+        recon::session::train(req, Cpu, &pb)?;
+        pb.finish_and_clear();
+        Ok(())
+    })?;
+
+    let eval_dir = out.join("recon-eval");
+    let eval_key = json!({"model": train_key});
+    stages.cached("evaluate reconstruction", &eval_dir, &eval_key, || {
+        let priors = recon::targets::prior_loader(&scene_dir)?;
+        let report = recon::eval::evaluate_model_dir(&Cpu, &model_dir, &scene_dir, priors.as_ref())?;
+        std::fs::create_dir_all(&eval_dir).map_err(io(&eval_dir))?;
+        scene::format::write_json_pretty(&eval_dir.join("eval.json"), &report)?;
+        crate::report::held_out_pictures(&Cpu, &model_dir, &scene_dir, &eval_dir)?;
+        Ok(())
+    })?;
+    let recon: recon::eval::EvalReport = scene::format::read_json(&eval_dir.join("eval.json"))?;
+
+    let scene = scene::load_scene(&scene_dir)?;
+    let (model, record) = recon::model_io::load_model(&model_dir)?;
+    let mut cases = Vec::new();
+    for &behavior in &cfg.behaviors {
+        let case_dir = out.join("cases").join(behavior.as_str());
+        let req = CaseRequest {
+            behavior,
+            agent: cfg.agent,
+            adversary: None,
+            seed: cfg.seed,
+            seeds_per_t0: 3,
+            refine_rounds: 3,
+        };
+        let key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": cfg.render});
+        stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
+            let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &cfg.render, out: &case_dir };
+            let pb = progress.bar();
+            run(&inputs, &req, &T0Choice::Search(T0Spec::Every(0.5)), None, &pb)?;
+            pb.finish_and_clear();
+            Ok(())
+        })?;
+        cases.push((behavior, scene::format::read_json(&case_dir.join("run.json"))?));
+    }
+
+    let mut result = DemoResult {
+        config: cfg.clone(),
+        out: out.to_path_buf(),
+        recon,
+        model: record,
+        cases,
+        timings: stages.timings,
+        total_seconds: 0.0,
+    };
+    let clock_report = Instant::now();
+    progress.stage("report");
+    crate::report::write_report(&result, out)?;
+    result.timings.push(StageTime {
+        stage: "report".into(),
+        seconds: clock_report.elapsed().as_secs_f64(),
+        cached: false,
+    });
+    result.total_seconds = clock.elapsed().as_secs_f64();
+    scene::format::write_json_pretty(&out.join("demo.json"), &result)?;
+    Ok(result)
+}

@@ -1,0 +1,13 @@
+//! `pipeline`: the whole chain for one corner case (`run`: reason -> simulate -> measure ->
+//! export -> render) and the `demo` (synthesise -> priors -> train -> evaluate -> one case per
+//! showcased behaviour -> report), each stage cached by its inputs and settings (`cache`).
+
+pub mod cache;
+pub mod case;
+pub mod demo;
+pub mod error;
+pub mod outputs;
+pub mod report;
+pub mod run;
+
+pub use error::PipelineError;

@@ -1,0 +1,146 @@
+//! Rendering a corner case as video: for every frame time of the clip, each tile of the layout is
+//! drawn (camera views through the `recon` backend with the adversary moved by
+//! `backproject`, or as logged for the original; the bird's-eye panel by `bev`), pasted side by
+//! side and handed to the encoder. Every other actor and the ego follow the log.
+
+use crate::backproject::Backprojection;
+use crate::bev::{draw_bev, BevStyle};
+use crate::canvas::Canvas;
+use crate::encode::{Encoder, VideoOutput};
+use crate::layout::{Layout, Tile};
+use crate::timeline::{world_from_ego_at, Timeline};
+use crate::RenderError;
+use indicatif::ProgressBar;
+use recon::backend::Backend;
+use recon::compose::Layers;
+use recon::SceneModel;
+use scene::{Executed, Scene};
+use std::path::Path;
+
+/// How to render a clip.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VideoSpec {
+    pub layout: Layout,
+    pub fps: f64,
+    /// Seconds of the log shown before the corner case starts.
+    pub lead_in_s: f64,
+    /// Fraction of the cameras' image size.
+    pub scale: f64,
+    /// The bird's-eye panel shows this far ahead of the ego (m).
+    pub bev_ahead_m: f64,
+    /// Write PNG frames even when ffmpeg is there.
+    pub png_only: bool,
+}
+
+impl Default for VideoSpec {
+    fn default() -> Self {
+        VideoSpec {
+            layout: Layout::FrontTriple,
+            fps: 24.0,
+            lead_in_s: 1.5,
+            scale: 1.0,
+            bev_ahead_m: 30.0,
+            png_only: false,
+        }
+    }
+}
+
+/// The model's actor index of `track`.
+pub fn actor_index(model: &SceneModel, track: &str) -> Result<usize, RenderError> {
+    model.actors.iter().position(|a| a.track_id == track).ok_or_else(|| RenderError::NoActorModel {
+        track: track.into(),
+        available: model.actors.iter().map(|a| a.track_id.as_str()).collect::<Vec<_>>().join(", "),
+    })
+}
+
+/// The rasterizer camera `name` on the logged ego at time `t`.
+pub fn camera_at(scene: &Scene, name: &str, t: f64, scale: f64) -> Result<splat::Camera, RenderError> {
+    let cam = scene.camera(name).ok_or_else(|| RenderError::NoCamera {
+        camera: name.into(),
+        available: scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
+    })?;
+    Ok(recon::camera::splat_camera(cam, &world_from_ego_at(scene, t), scale)?)
+}
+
+/// One corner case ready to draw.
+pub struct CaseView<'a, B: Backend> {
+    pub backend: &'a B,
+    pub model: &'a SceneModel,
+    pub scene: &'a Scene,
+    pub executed: &'a Executed,
+    pub adversary: Backprojection,
+    actor: usize,
+}
+
+impl<'a, B: Backend> CaseView<'a, B> {
+    pub fn new(
+        backend: &'a B,
+        model: &'a SceneModel,
+        scene: &'a Scene,
+        executed: &'a Executed,
+    ) -> Result<Self, RenderError> {
+        let adversary = Backprojection::new(scene, executed)?;
+        let actor = actor_index(model, &adversary.track_id)?;
+        Ok(CaseView { backend, model, scene, executed, adversary, actor })
+    }
+
+    /// Camera `camera` at time `t`, with the corner-case motion or as logged.
+    pub fn view(&self, camera: &str, t: f64, scale: f64, corner_case: bool) -> Result<Canvas, RenderError> {
+        let cam = camera_at(self.scene, camera, t, scale)?;
+        let pose = corner_case.then(|| self.adversary.pose_at(self.scene, t));
+        let overrides = |i: usize| if i == self.actor { pose } else { None };
+        let d = recon::view::draw(self.backend, self.model, self.scene, &cam, t, Layers::All, &overrides);
+        Ok(Canvas::from_rgb_f64(d.width, d.height, &d.rgb))
+    }
+
+    /// One frame of `layout` at time `t`.
+    pub fn frame(&self, tiles: &[Tile], t: f64, spec: &VideoSpec) -> Result<Canvas, RenderError> {
+        let mut parts = Vec::with_capacity(tiles.len());
+        for tile in tiles {
+            parts.push(match tile {
+                Tile::View { camera, corner_case } => self.view(camera, t, spec.scale, *corner_case)?,
+                Tile::Bev => {
+                    let h = parts.first().map_or(240, |c: &Canvas| c.height);
+                    let style = BevStyle { width: h, height: h, ahead_m: spec.bev_ahead_m };
+                    draw_bev(self.scene, self.executed, &self.adversary, t, &style)
+                }
+            });
+        }
+        let width = parts.iter().map(|c| c.width).sum();
+        let height = parts.iter().map(|c| c.height).max().unwrap_or(0);
+        let mut out = Canvas::new(width, height, [0, 0, 0]);
+        let mut x = 0;
+        for p in &parts {
+            out.blit(p, x, 0);
+            x += p.width;
+        }
+        Ok(out)
+    }
+
+    /// Renders the clip of `spec` to `out` (an `.mp4`; a PNG sequence beside it without ffmpeg).
+    pub fn render_video(
+        &self,
+        spec: &VideoSpec,
+        out: &Path,
+        progress: &ProgressBar,
+    ) -> Result<VideoOutput, RenderError> {
+        let timeline = Timeline::for_case(self.scene, self.executed, spec.fps, spec.lead_in_s)?;
+        let tiles = spec.layout.tiles(self.scene)?;
+        progress.set_length(timeline.times.len() as u64);
+        progress.set_position(0);
+        let mut encoder: Option<Encoder> = None;
+        for (k, &t) in timeline.times.iter().enumerate() {
+            let frame = self.frame(&tiles, t, spec)?;
+            let enc = match &mut encoder {
+                Some(e) => e,
+                None => encoder.insert(Encoder::open(out, frame.width, frame.height, spec.fps, spec.png_only)?),
+            };
+            enc.push(&frame)?;
+            progress.set_position(k as u64 + 1);
+        }
+        let enc = encoder.ok_or_else(|| RenderError::Settings { what: "video".into(), detail: "no frames".into() })?;
+        let result = enc.finish()?;
+        tracing::info!(path = %result.path.display(), frames = result.frames, "video written");
+        Ok(result)
+    }
+}
