@@ -7,6 +7,7 @@
 #   ffmpeg                                                - MP4 (H.264) corner-case videos
 #   libxml2-utils (xmllint)                               - OpenSCENARIO schema validation test
 #   chromium                                              - the report page test (headless)
+#   fonts-dejavu-core                                     - text in the plots
 # then the default local LLM (tools/setup-model.sh). Idempotent: a second run installs nothing.
 #
 # Runs as root (CI, containers) or through sudo when it is available. Set CARLA_GS_SKIP_APT=1 to
@@ -27,6 +28,7 @@ need libclang-dev sh -c 'ls /usr/lib/llvm-*/lib/libclang.so* || ls /usr/lib/*/li
 need ffmpeg command -v ffmpeg
 need libxml2-utils command -v xmllint
 need chromium sh -c 'command -v chromium || command -v chromium-browser'
+need fonts-dejavu-core test -f /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf
 
 if [ ${#missing[@]} -gt 0 ] && [ "${CARLA_GS_SKIP_APT:-0}" != 1 ]; then
   echo "setup: installing ${missing[*]}" >&2

@@ -42,8 +42,7 @@ pub struct DemoConfig {
 
 impl Default for DemoConfig {
     fn default() -> Self {
-        let mut train = TrainConfig::default();
-        train.iterations = 1500;
+        let train = TrainConfig { iterations: 1500, ..TrainConfig::default() };
         DemoConfig {
             frames: 80,
             cameras: 3,

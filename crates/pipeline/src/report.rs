@@ -93,7 +93,9 @@ const CHECK_SCRIPT: &str = r#"<script>
   var origError=console.error;console.error=function(){errors.push('console: '+Array.from(arguments).join(' '));origError.apply(console,arguments);};
   function settle(el){return new Promise(function(ok){
     if(el.tagName==='IMG'){ if(el.complete){ok(el.naturalWidth>0?null:el.src);} else {el.onload=function(){ok(null)};el.onerror=function(){ok(el.currentSrc||el.src)};} }
-    else { if(el.readyState>=1){ok(null);} else {el.addEventListener('loadedmetadata',function(){ok(null)});el.addEventListener('error',function(){ok(el.currentSrc||el.src)},true);} }
+    else { if(el.error||el.networkState===3){ok(el.currentSrc||el.src);} else if(el.readyState>=1){ok(null);}
+      else {el.addEventListener('loadedmetadata',function(){ok(null)});el.addEventListener('error',function(){ok(el.currentSrc||el.src)},true);} }
+    setTimeout(function(){ok('timeout: '+(el.currentSrc||el.src));},15000);
   });}
   window.addEventListener('load',function(){
     var els=Array.from(document.querySelectorAll('img,video'));

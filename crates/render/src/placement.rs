@@ -106,9 +106,8 @@ pub fn overlay(width: usize, height: usize, rgb: &[[f64; 3]], boxed: &[bool], dr
             (false, true) => [40, 200, 60],
             (false, false) => continue,
         };
-        for k in 0..3 {
-            let v = &mut c.rgb[i * 3 + k];
-            *v = ((*v as u16 + tint[k] as u16) / 2) as u8;
+        for (v, t) in c.rgb[i * 3..i * 3 + 3].iter_mut().zip(tint) {
+            *v = ((*v as u16 + t as u16) / 2) as u8;
         }
     }
     c

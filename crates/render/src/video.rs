@@ -39,7 +39,7 @@ impl Default for VideoSpec {
             fps: 24.0,
             lead_in_s: 1.5,
             scale: 1.0,
-            bev_ahead_m: 30.0,
+            bev_ahead_m: 20.0,
             png_only: false,
         }
     }
