@@ -165,3 +165,49 @@ pub fn png_dir(path: &Path) -> PathBuf {
     let stem = path.file_stem().map_or("video".into(), |s| s.to_string_lossy().into_owned());
     path.with_file_name(format!("{stem}_frames"))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frames(n: usize) -> Vec<Canvas> {
+        (0..n).map(|k| Canvas::new(17, 9, [k as u8 * 20, 100, 200])).collect()
+    }
+
+    #[test]
+    fn png_sequence_when_asked_or_without_ffmpeg() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("clip.mp4");
+        let mut e = Encoder::open(&path, 17, 9, 24.0, true).unwrap();
+        for f in frames(3) {
+            e.push(&f).unwrap();
+        }
+        let out = e.finish().unwrap();
+        assert!(matches!(out.kind, VideoKind::PngSequence { .. }));
+        assert_eq!((out.width, out.height, out.frames), (18, 10, 3), "padded to even sizes");
+        assert!(out.path.join("frame_000002.png").is_file());
+        assert!(!path.exists());
+        // A frame larger than the clip is refused, not cut.
+        let mut e = Encoder::open(&path, 4, 4, 24.0, true).unwrap();
+        assert!(e.push(&Canvas::new(8, 8, [0, 0, 0])).is_err());
+    }
+
+    #[test]
+    fn mp4_through_ffmpeg() {
+        if find_ffmpeg().is_none() {
+            println!("SKIP: ffmpeg is not installed (tools/setup.sh installs it)");
+            return;
+        }
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("clip.mp4");
+        let mut e = Encoder::open(&path, 17, 9, 24.0, false).unwrap();
+        for f in frames(5) {
+            e.push(&f).unwrap();
+        }
+        let out = e.finish().unwrap();
+        assert_eq!(out.kind, VideoKind::Mp4);
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[4..8], b"ftyp", "an MP4 container");
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1, "no temporary file left");
+    }
+}
