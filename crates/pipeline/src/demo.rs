@@ -114,14 +114,10 @@ impl Stages<'_> {
     }
 }
 
-fn io(path: &Path) -> impl Fn(std::io::Error) -> PipelineError + '_ {
-    move |e| PipelineError::Scene(scene::SceneError::io(path, e))
-}
-
 /// Runs the demo into `out` (created if needed) and writes `report.html` there.
 pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Result<DemoResult, PipelineError> {
     let clock = Instant::now();
-    std::fs::create_dir_all(out).map_err(io(out))?;
+    std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     let mut stages = Stages { timings: vec![], progress };
     let scene_dir = out.join("scene");
     let scene_key = json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
@@ -179,7 +175,7 @@ pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Re
     stages.cached("evaluate reconstruction", &eval_dir, &eval_key, || {
         let priors = recon::targets::prior_loader(&scene_dir)?;
         let report = recon::eval::evaluate_model_dir(&Cpu, &model_dir, &scene_dir, priors.as_ref())?;
-        std::fs::create_dir_all(&eval_dir).map_err(io(&eval_dir))?;
+        std::fs::create_dir_all(&eval_dir).map_err(PipelineError::io(&eval_dir))?;
         scene::format::write_json_pretty(&eval_dir.join("eval.json"), &report)?;
         crate::report::held_out_pictures(&Cpu, &model_dir, &scene_dir, &eval_dir)?;
         Ok(())

@@ -15,6 +15,11 @@ pub enum PipelineError {
 }
 
 impl PipelineError {
+    /// An I/O error on `path`, as a closure for `map_err`.
+    pub fn io(path: &std::path::Path) -> impl Fn(std::io::Error) -> Self + '_ {
+        move |e| PipelineError::Scene(scene::SceneError::io(path, e))
+    }
+
     pub fn stage(stage: &str, detail: impl std::fmt::Display) -> Self {
         PipelineError::Stage { stage: stage.into(), detail: detail.to_string() }
     }

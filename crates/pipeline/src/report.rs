@@ -18,10 +18,6 @@ use std::path::Path;
 pub const REPORT_FILE: &str = "report.html";
 pub const ASSETS_DIR: &str = "report_files";
 
-fn io(path: &Path) -> impl Fn(std::io::Error) -> PipelineError + '_ {
-    move |e| PipelineError::Scene(scene::SceneError::io(path, e))
-}
-
 /// Saves, for the middle held-out frame, each camera's logged image beside the model's render of
 /// it (`heldout_<CAMERA>.png` under `dir`).
 pub fn held_out_pictures<B: Backend>(
@@ -73,9 +69,9 @@ fn mean(m: &Option<recon::eval::Mean>, digits: usize) -> String {
 fn copy_asset(src: &Path, assets: &Path, rel: &str) -> Result<String, PipelineError> {
     let dst = assets.join(rel);
     if let Some(p) = dst.parent() {
-        std::fs::create_dir_all(p).map_err(io(p))?;
+        std::fs::create_dir_all(p).map_err(PipelineError::io(p))?;
     }
-    std::fs::copy(src, &dst).map_err(io(src))?;
+    std::fs::copy(src, &dst).map_err(PipelineError::io(src))?;
     Ok(format!("{ASSETS_DIR}/{rel}"))
 }
 
@@ -113,9 +109,9 @@ const CHECK_SCRIPT: &str = r#"<script>
 pub fn write_report(r: &DemoResult, out: &Path) -> Result<(), PipelineError> {
     let assets = out.join(ASSETS_DIR);
     if assets.exists() {
-        std::fs::remove_dir_all(&assets).map_err(io(&assets))?;
+        std::fs::remove_dir_all(&assets).map_err(PipelineError::io(&assets))?;
     }
-    std::fs::create_dir_all(&assets).map_err(io(&assets))?;
+    std::fs::create_dir_all(&assets).map_err(PipelineError::io(&assets))?;
     let mut h = String::new();
     let _ = write!(
         h,
@@ -184,7 +180,7 @@ fn recon_section(h: &mut String, r: &DemoResult, out: &Path, assets: &Path) -> R
     );
     let dir = out.join("recon-eval");
     let mut pics: Vec<_> =
-        std::fs::read_dir(&dir).map_err(io(&dir))?.filter_map(|e| e.ok()).map(|e| e.path()).collect();
+        std::fs::read_dir(&dir).map_err(PipelineError::io(&dir))?.filter_map(|e| e.ok()).map(|e| e.path()).collect();
     pics.retain(|p| p.extension().is_some_and(|x| x == "png"));
     pics.sort();
     if !pics.is_empty() {

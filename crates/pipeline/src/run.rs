@@ -139,7 +139,7 @@ pub fn run<B: Backend>(
     progress: &ProgressBar,
 ) -> Result<RunSummary, PipelineError> {
     let out = inputs.out;
-    std::fs::create_dir_all(out).map_err(|e| PipelineError::Scene(scene::SceneError::io(out, e)))?;
+    std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     clear_outputs(out)?;
     let layouts = inputs.render.parsed_layouts()?;
     let mut timings = Vec::new();
@@ -175,8 +175,7 @@ pub fn run<B: Backend>(
             check_best_camera(inputs.backend, inputs.model, inputs.scene, &view.adversary, t, inputs.render.scale)?
         {
             let name = format!("placement/t{:.2}_{}.png", p.t, p.camera);
-            std::fs::create_dir_all(out.join("placement"))
-                .map_err(|e| PipelineError::Scene(scene::SceneError::io(out, e)))?;
+            std::fs::create_dir_all(out.join("placement")).map_err(PipelineError::io(out))?;
             picture.save_png(&out.join(&name))?;
             files.push(name);
             placement.push(p);
@@ -192,7 +191,7 @@ pub fn run<B: Backend>(
 
     let clock = Instant::now();
     let videos_dir = out.join("videos");
-    std::fs::create_dir_all(&videos_dir).map_err(|e| PipelineError::Scene(scene::SceneError::io(&videos_dir, e)))?;
+    std::fs::create_dir_all(&videos_dir).map_err(PipelineError::io(&videos_dir))?;
     let mut videos = Vec::new();
     for layout in layouts {
         let spec = VideoSpec {
