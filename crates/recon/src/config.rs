@@ -80,6 +80,12 @@ pub struct InitConfig {
     pub opacity: f64,
     /// Stride (pixels at training scale) when back-projecting depth priors.
     pub depth_stride: usize,
+    /// Surface-aligned start (`surface.rs`): neighbours per point for the local PCA (0: every
+    /// Gaussian starts isotropic, as in 3DGS), the planarity test (smallest variance at most this
+    /// times the middle one) and the start's thickness (normal-axis scale / in-plane scale).
+    pub surface_neighbours: usize,
+    pub surface_planarity: f64,
+    pub surface_thickness: f64,
 }
 
 impl Default for TrainConfig {
@@ -142,6 +148,9 @@ impl Default for InitConfig {
             actor_points: 3000,
             opacity: 0.1,
             depth_stride: 4,
+            surface_neighbours: 16,
+            surface_planarity: 0.1,
+            surface_thickness: 0.2,
         }
     }
 }
@@ -157,6 +166,13 @@ impl TrainConfig {
     pub fn validate(&self) -> Result<(), String> {
         if !(self.scale > 0.0 && self.scale <= 1.0) {
             return Err(format!("scale must be in (0, 1], got {}", self.scale));
+        }
+        let i = &self.init;
+        if !(i.surface_thickness > 0.0 && i.surface_thickness <= 1.0 && i.surface_planarity >= 0.0) {
+            return Err(format!(
+                "init.surface_thickness must be in (0, 1] and init.surface_planarity >= 0, got {} and {}",
+                i.surface_thickness, i.surface_planarity
+            ));
         }
         if self.sh_degree > 3 {
             return Err(format!("sh_degree must be 0..=3, got {}", self.sh_degree));

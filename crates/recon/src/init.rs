@@ -2,8 +2,9 @@
 //! priors back-projected through their views, else from random points in the cameras' bounds;
 //! each tracked object gets the LiDAR points inside its box (in its box frame), topped up with
 //! random points inside the box. Points are voxel-thinned and capped (seeded), coloured from the
-//! first view that sees them, and get the 3DGS start: isotropic scale = RMS distance to the three
-//! nearest neighbours, identity rotation, low opacity, SH DC from the colour.
+//! first view that sees them, and get the 3DGS start: scale = RMS distance to the three nearest
+//! neighbours, low opacity, SH DC from the colour; where the neighbours are planar the Gaussian
+//! starts as a thin disc in the surface (`surface.rs`), elsewhere as an isotropic ball.
 
 use crate::config::InitConfig;
 use crate::data::View;
@@ -11,11 +12,13 @@ use crate::error::ReconError;
 use crate::model::{empty, Actor, SceneModel};
 use crate::pose::box_pose_at;
 use crate::sky::Sky;
+use crate::surface::{surface_start, SurfaceStart};
 use glam::DVec3;
 use kiddo::{KdTree, SquaredEuclidean};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use scene::{ObjectClass, Scene};
 use serde::Serialize;
 use splat::sh::C0;
@@ -28,6 +31,8 @@ use std::path::Path;
 pub struct InitReport {
     pub background_source: &'static str,
     pub background_points: usize,
+    /// Background Gaussians that start as discs in a planar neighbourhood (`surface.rs`).
+    pub background_surface_aligned: usize,
     /// Per actor: track id, points from LiDAR, random points added.
     pub actors: Vec<(String, usize, usize)>,
 }
@@ -52,22 +57,41 @@ fn colour_of(p: DVec3, views: &[&View]) -> Option<[f64; 3]> {
     })
 }
 
-/// Gaussians at `points` with colours, isotropic 3-NN scales, identity rotations.
-pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, opacity: f64) -> Gaussians {
+/// Gaussians at `points` with colours and 3-NN scales: isotropic with identity rotations, or, where
+/// `cfg.surface_neighbours > 0` and the neighbourhood is planar, thin discs in the local surface.
+pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, cfg: &InitConfig) -> Gaussians {
     let mut g = empty(degree);
     let mut tree: KdTree<f64, 3> = KdTree::new();
     for (i, (p, _)) in points.iter().enumerate() {
         tree.add(&p.to_array(), i as u64);
     }
     let k = g.coeffs() * 3;
-    for (p, c) in points {
+    let opacity = cfg.opacity;
+    let starts: Vec<Option<SurfaceStart>> = points
+        .par_iter()
+        .map(|(p, _)| {
+            (cfg.surface_neighbours > 0).then_some(())?;
+            let near = tree.nearest_n::<SquaredEuclidean>(&p.to_array(), cfg.surface_neighbours);
+            let pts: Vec<DVec3> = near.iter().map(|n| points[n.item as usize].0).collect();
+            surface_start(&pts, cfg.surface_planarity)
+        })
+        .collect();
+    for ((p, c), start) in points.iter().zip(starts) {
         let near = tree.nearest_n::<SquaredEuclidean>(&p.to_array(), 4);
         let d2: Vec<f64> = near.iter().map(|n| n.distance).filter(|d| *d > 0.0).take(3).collect();
         let mean_d2 = if d2.is_empty() { 0.01 } else { d2.iter().sum::<f64>() / d2.len() as f64 };
         let s = mean_d2.sqrt().max(1e-4).ln();
         g.means.push(p.to_array());
-        g.log_scales.push([s; 3]);
-        g.rotations.push([1.0, 0.0, 0.0, 0.0]);
+        match start {
+            Some(st) => {
+                g.log_scales.push([s, s, s + cfg.surface_thickness.ln()]);
+                g.rotations.push(st.rotation);
+            }
+            None => {
+                g.log_scales.push([s; 3]);
+                g.rotations.push([1.0, 0.0, 0.0, 0.0]);
+            }
+        }
         g.opacity_logits.push((opacity / (1.0 - opacity)).ln());
         let mut sh = vec![0.0; k];
         for ch in 0..3 {
@@ -178,9 +202,15 @@ pub fn initialise(
         }
     }
     let bg_points = thin(bg_points, cfg.voxel_m, cfg.max_points, &mut rng);
-    let background = gaussians_at(&bg_points, sh_degree, cfg.opacity);
+    let background = gaussians_at(&bg_points, sh_degree, cfg);
     let mut actors = Vec::new();
-    let mut report = InitReport { background_source: source, background_points: bg_points.len(), actors: vec![] };
+    let aligned = background.log_scales.iter().filter(|s| s[2] < s[0]).count();
+    let mut report = InitReport {
+        background_source: source,
+        background_points: bg_points.len(),
+        background_surface_aligned: aligned,
+        actors: vec![],
+    };
     for (t, pts) in tracks.iter().zip(actor_points) {
         let size = t.median_size_lwh();
         let mut pts = thin(pts, cfg.voxel_m / 3.0, cfg.actor_points, &mut rng);
@@ -195,11 +225,7 @@ pub fn initialise(
             pts.push((p, [0.5; 3]));
         }
         report.actors.push((t.id.clone(), from_lidar, pts.len() - from_lidar));
-        actors.push(Actor {
-            track_id: t.id.clone(),
-            size_lwh: size,
-            gaussians: gaussians_at(&pts, sh_degree, cfg.opacity),
-        });
+        actors.push(Actor { track_id: t.id.clone(), size_lwh: size, gaussians: gaussians_at(&pts, sh_degree, cfg) });
     }
     let model = SceneModel { background, actors, sky: Sky::new(sky_res, [0.5; 3]) };
     Ok((model, report))

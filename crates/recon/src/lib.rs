@@ -30,6 +30,7 @@ pub mod session;
 pub mod sh_rotate;
 pub mod sky;
 pub mod ssim;
+pub mod surface;
 pub mod targets;
 pub mod train;
 pub mod view;

@@ -29,9 +29,12 @@ pub struct Start {
 }
 
 /// The reference for a timed path whose first `n_logged` points are logged positions and the rest
-/// a plan's waypoints: smoothed (`smooth.rs`, with the logged and plan sigmas) unless smoothing is
-/// off. The initial speed is the reference's speed at its start; the initial heading its
-/// direction of motion there, or `logged_heading` below [`HEADING_MIN_SPEED`].
+/// a plan's waypoints: smoothed (`smooth.rs`; logged points with the log sigma, or the still
+/// sigma when the logged run never leaves a circle of the log sigma around its median point, plan
+/// waypoints with the plan sigma) unless smoothing is off. The initial speed is the reference's speed at its start; the initial heading its
+/// direction of motion there, or `logged_heading` below [`HEADING_MIN_SPEED`]. A start velocity
+/// pointing behind the logged body (never a real motion: the model has no reverse gear) starts
+/// the car at rest along `logged_heading`.
 pub fn start_for_path(
     points: &[(f64, DVec2)],
     n_logged: usize,
@@ -39,22 +42,43 @@ pub fn start_for_path(
     cfg: &SmoothingConfig,
 ) -> Result<Start, String> {
     let reference = if cfg.enabled {
+        let log_sigma = if is_still(&points[..n_logged.min(points.len())], cfg.log_sigma_m) {
+            cfg.still_sigma_m
+        } else {
+            cfg.log_sigma_m
+        };
         let samples: Vec<Sample> = points
             .iter()
             .enumerate()
-            .map(|(i, (t, p))| Sample {
-                t: *t,
-                p: *p,
-                sigma: if i < n_logged { cfg.log_sigma_m } else { cfg.plan_sigma_m },
-            })
+            .map(|(i, (t, p))| Sample { t: *t, p: *p, sigma: if i < n_logged { log_sigma } else { cfg.plan_sigma_m } })
             .collect();
         Reference::smoothed(&smooth(&samples, cfg)?)?
     } else {
         Reference::new(points.to_vec())?
     };
     let v = reference.velocity(reference.start_time());
-    let heading = if v.length() >= HEADING_MIN_SPEED { v.y.atan2(v.x) } else { logged_heading };
-    Ok(Start { speed: v.length(), heading, reference })
+    let body = DVec2::new(logged_heading.cos(), logged_heading.sin());
+    // The vehicle model only drives forwards: a smoothed start velocity against the logged body
+    // (a parked car's jitter bent into a parabola by a plan that pulls away, say) is not a motion
+    // the car had. Then the car starts along its body, at the forward part of that velocity.
+    let forward = v.dot(body) > 0.0;
+    let heading = if v.length() >= HEADING_MIN_SPEED && forward { v.y.atan2(v.x) } else { logged_heading };
+    let speed = if forward { v.length() } else { 0.0 };
+    Ok(Start { speed, heading, reference })
+}
+
+/// At least three logged points, all within `radius` of their (per-axis) median point.
+fn is_still(points: &[(f64, DVec2)], radius: f64) -> bool {
+    if points.len() < 3 {
+        return false;
+    }
+    let median = |f: fn(&DVec2) -> f64| {
+        let mut v: Vec<f64> = points.iter().map(|(_, p)| f(p)).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let m = DVec2::new(median(|p| p.x), median(|p| p.y));
+    points.iter().all(|(_, p)| p.distance(m) <= radius)
 }
 
 #[derive(Clone, Debug)]

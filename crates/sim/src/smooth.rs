@@ -30,6 +30,12 @@ pub struct SmoothingConfig {
     pub enabled: bool,
     /// Position noise of logged samples (m).
     pub log_sigma_m: f64,
+    /// Position noise of a logged run that stays within `log_sigma_m` of its median point (a
+    /// parked or queued car, m). Told that such a log is `log_sigma_m` noisy, the
+    /// constant-acceleration smoother bends its stillness and a plan that pulls away into one
+    /// parabola: the reference backs up before it drives off, which a car cannot follow.
+    #[serde(default = "default_still_sigma")]
+    pub still_sigma_m: f64,
     /// Position noise of a plan's waypoints (m): small, the plan is what should be driven.
     pub plan_sigma_m: f64,
     /// Power spectral density of the jerk (m^2/s^5): larger follows faster manoeuvres.
@@ -45,12 +51,17 @@ impl Default for SmoothingConfig {
         SmoothingConfig {
             enabled: true,
             log_sigma_m: 0.3,
+            still_sigma_m: default_still_sigma(),
             plan_sigma_m: 0.05,
             jerk_psd: 1.0,
             robust_k: 3.0,
             iterations: 3,
         }
     }
+}
+
+fn default_still_sigma() -> f64 {
+    0.02
 }
 
 /// One measured position with its standard deviation (m).
