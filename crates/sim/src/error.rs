@@ -24,4 +24,6 @@ pub enum SimError {
     Track(#[from] TrackError),
     #[error("rollout: {0}")]
     Reference(String),
+    #[error("CARLA backend: {0}")]
+    Carla(#[from] crate::carla::CarlaError),
 }
