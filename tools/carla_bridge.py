@@ -161,7 +161,7 @@ class CarlaWorld:
         try:
             self.version = self.client.get_server_version()
         except RuntimeError as e:
-            raise BridgeError("no_server", f"no CARLA server answered at {host}:{port} within {timeout:g} s: {e}")
+            raise BridgeError("no_server", str(e))
         log(f"server {self.version} at {host}:{port}, client {self.client.get_client_version()}")
         self.client.set_timeout(max(timeout, float(setup.get("load_timeout_s", 120.0))))
         params = carla.OpendriveGenerationParameters(

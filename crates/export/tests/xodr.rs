@@ -18,7 +18,10 @@ fn scene_with(map: Option<Map>) -> Scene {
         .map(|i| Frame {
             index: i,
             timestamp_s: 100.0 + 0.1 * i as f64,
-            world_from_ego: Transform3::from_yaw_translation(0.3, DVec3::new(5000.0 + i as f64, 2000.0 + 0.3 * i as f64, 7.0)),
+            world_from_ego: Transform3::from_yaw_translation(
+                0.3,
+                DVec3::new(5000.0 + i as f64, 2000.0 + 0.3 * i as f64, 7.0),
+            ),
             images: Vec::new(),
             lidar: None,
         })
@@ -106,7 +109,10 @@ fn assert_same(a: &RoadNetwork, b: &RoadNetwork) {
     assert_eq!((a.name.as_str(), a.roads.len()), (b.name.as_str(), b.roads.len()));
     assert!((a.origin - b.origin).length() < 1e-6);
     for (r, q) in a.roads.iter().zip(&b.roads) {
-        assert_eq!((r.id, &r.name, r.geometry.len(), r.elevation.len()), (q.id, &q.name, q.geometry.len(), q.elevation.len()));
+        assert_eq!(
+            (r.id, &r.name, r.geometry.len(), r.elevation.len()),
+            (q.id, &q.name, q.geometry.len(), q.elevation.len())
+        );
         assert!(close(r.length, q.length, 1e-6) && close(r.lane_offset, q.lane_offset, 1e-6));
         for (g, h) in r.geometry.iter().zip(&q.geometry) {
             assert!(close(g.s, h.s, 1e-6) && close(g.x, h.x, 1e-6) && close(g.y, h.y, 1e-6), "{g:?} {h:?}");

@@ -11,11 +11,11 @@
 
 use crate::actuation::ActuationParams;
 use crate::collision::{cuboid, first_overlap, replayed_actors, Replayed};
-use crate::model::State;
-use crate::reference::Reference;
 use crate::error::SimError;
+use crate::model::State;
 use crate::params::VehicleParams;
 use crate::reference::start_for_path;
+use crate::reference::Reference;
 use crate::smooth::SmoothingConfig;
 use crate::tracker::{StepRecord, Tracker, TrackerConfig};
 use crate::validity::{assess, BoxSize, ValidityConfig};

@@ -111,10 +111,7 @@ pub struct ControlLaw {
 
 impl ControlLaw {
     pub fn new(c: &TrackerConfig) -> Self {
-        ControlLaw {
-            config: *c,
-            pid: VehiclePidController::new(c.lateral, c.longitudinal, c.limits, c.control_dt_s),
-        }
+        ControlLaw { config: *c, pid: VehiclePidController::new(c.lateral, c.longitudinal, c.limits, c.control_dt_s) }
     }
 
     /// The command at time `t` for a vehicle at `pos` (m, world) heading `heading` (rad) at

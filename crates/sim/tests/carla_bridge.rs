@@ -178,7 +178,11 @@ fn contact_with_a_replayed_actor_comes_back() {
 #[test]
 fn import_carla_from_the_installed_wheel() {
     let Some(python) = carla_python_or_skip("import carla") else { return };
-    let out = Command::new(&python).arg("-c").arg("import carla; c = carla.Client('127.0.0.1', 2000); print(c.get_client_version())").output().unwrap();
+    let out = Command::new(&python)
+        .arg("-c")
+        .arg("import carla; c = carla.Client('127.0.0.1', 2000); print(c.get_client_version())")
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let version = String::from_utf8_lossy(&out.stdout);
     assert!(version.trim().starts_with("0.9.16"), "client version {version}");

@@ -134,12 +134,8 @@ impl Road {
     /// The lateral position (left positive) of the centre of lane `id`, if the road has it.
     pub fn lane_center_t(&self, id: i32) -> Option<f64> {
         let lane = self.lanes.iter().find(|l| l.id == id && id != 0)?;
-        let inner: f64 = self
-            .lanes
-            .iter()
-            .filter(|l| l.id.signum() == id.signum() && l.id.abs() < id.abs())
-            .map(|l| l.width)
-            .sum();
+        let inner: f64 =
+            self.lanes.iter().filter(|l| l.id.signum() == id.signum() && l.id.abs() < id.abs()).map(|l| l.width).sum();
         let t = inner + lane.width / 2.0;
         Some(self.lane_offset + if id > 0 { t } else { -t })
     }

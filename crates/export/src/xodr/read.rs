@@ -28,9 +28,11 @@ pub fn read_xodr(text: &str) -> Result<RoadNetwork, ExportError> {
     for ud in header.all("userData") {
         if ud.attr("code")? == ORIGIN_CODE {
             let raw = ud.attr("value")?;
-            let v: Vec<f64> = raw.split_whitespace().map(parse_finite).collect::<Result<_, _>>().map_err(|m| {
-                ExportError::Content { path: format!("{}@value", ud.path), message: m }
-            })?;
+            let v: Vec<f64> = raw
+                .split_whitespace()
+                .map(parse_finite)
+                .collect::<Result<_, _>>()
+                .map_err(|m| ExportError::Content { path: format!("{}@value", ud.path), message: m })?;
             let [x, y, z] = v[..] else {
                 return Err(ud.error(format!("expected three numbers \"x y z\", got `{raw}`")));
             };
@@ -132,7 +134,15 @@ fn road(node: &Node) -> Result<Road, ExportError> {
             lanes.push(lane(&l, side)?);
         }
     }
-    Ok(Road { id, name: node.el.get("name").unwrap_or_default().to_string(), length, geometry, elevation, lane_offset, lanes })
+    Ok(Road {
+        id,
+        name: node.el.get("name").unwrap_or_default().to_string(),
+        length,
+        geometry,
+        elevation,
+        lane_offset,
+        lanes,
+    })
 }
 
 fn lane(l: &Node, side: &str) -> Result<Lane, ExportError> {
@@ -151,7 +161,10 @@ fn lane(l: &Node, side: &str) -> Result<Lane, ExportError> {
     zero(w, &["sOffset", "b", "c", "d"])?;
     let width = w.f64("a")?;
     if width <= 0.0 {
-        return Err(ExportError::Content { path: format!("{}@a", w.path), message: format!("width must be positive, got {width}") });
+        return Err(ExportError::Content {
+            path: format!("{}@a", w.path),
+            message: format!("width must be positive, got {width}"),
+        });
     }
     Ok(Lane { id, kind: l.attr("type")?.to_string(), width })
 }

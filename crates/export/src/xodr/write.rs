@@ -86,7 +86,12 @@ fn road(r: &Road) -> Element {
     }));
     let lane = |l: &super::Lane| {
         Element::new("lane").attr("id", l.id.to_string()).attr("type", l.kind.clone()).attr("level", "false").child(
-            Element::new("width").attr("sOffset", "0").attr("a", len(l.width)).attr("b", "0").attr("c", "0").attr("d", "0"),
+            Element::new("width")
+                .attr("sOffset", "0")
+                .attr("a", len(l.width))
+                .attr("b", "0")
+                .attr("c", "0")
+                .attr("d", "0"),
         )
     };
     let mut left: Vec<&super::Lane> = r.lanes.iter().filter(|l| l.id > 0).collect();
@@ -98,9 +103,9 @@ fn road(r: &Road) -> Element {
     if !left.is_empty() {
         section = section.child(Element::new("left").children(left.into_iter().map(lane)));
     }
-    section = section.child(Element::new("center").child(
-        Element::new("lane").attr("id", "0").attr("type", "none").attr("level", "false"),
-    ));
+    section = section.child(
+        Element::new("center").child(Element::new("lane").attr("id", "0").attr("type", "none").attr("level", "false")),
+    );
     if !right.is_empty() {
         section = section.child(Element::new("right").children(right.into_iter().map(lane)));
     }

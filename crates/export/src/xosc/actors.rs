@@ -5,9 +5,9 @@
 
 use super::{ADVERSARY, EGO, OTHER_PREFIX};
 use crate::error::ExportError;
+use crate::ground::{ego_ground_series, ground_series, interp};
 use scene::frames::wrap_angle;
 use scene::motion::sample_series;
-use crate::ground::{ego_ground_series, ground_series, interp};
 use scene::{Executed, ObjectClass, Scene};
 use std::collections::HashSet;
 

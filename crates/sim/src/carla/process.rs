@@ -131,7 +131,10 @@ impl Bridge {
             }
         };
         let reply: Reply = serde_json::from_str(&line).map_err(|e| {
-            CarlaError::Protocol(format!("waiting for {waiting_for}: bad line `{}`: {e}", line.chars().take(200).collect::<String>()))
+            CarlaError::Protocol(format!(
+                "waiting for {waiting_for}: bad line `{}`: {e}",
+                line.chars().take(200).collect::<String>()
+            ))
         })?;
         match reply {
             Reply::Error { kind, message } => Err(CarlaError::Bridge { kind, message }),

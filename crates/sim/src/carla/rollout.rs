@@ -38,7 +38,9 @@ pub const MAX_SUBSTEPS: f64 = 10.0;
 
 fn check(opts: &CarlaOptions, dt: f64) -> Result<(), CarlaError> {
     let bad = |field, message: String| Err(CarlaError::Option { field, message });
-    for (field, v) in [("timeout_s", opts.timeout_s), ("load_timeout_s", opts.load_timeout_s), ("startup_s", opts.startup_s)] {
+    for (field, v) in
+        [("timeout_s", opts.timeout_s), ("load_timeout_s", opts.load_timeout_s), ("startup_s", opts.startup_s)]
+    {
         if !(v.is_finite() && v > 0.0) {
             return bad(field, format!("must be a positive number of seconds, got {v}"));
         }
@@ -140,7 +142,10 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig, opts: &CarlaOpt
             .filter_map(|a| {
                 let p = a.pose_at(t_next)?;
                 let z = interp(&z_of[&a.id], t_next);
-                Some(ActorPose { id: a.id.clone(), transform: frame.carla_from_world(DVec3::new(p.x, p.y, z), p.heading) })
+                Some(ActorPose {
+                    id: a.id.clone(),
+                    transform: frame.carla_from_world(DVec3::new(p.x, p.y, z), p.heading),
+                })
             })
             .collect();
         bridge.send(&Request::Step(Step { t, control, actors }))?;
@@ -151,11 +156,7 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig, opts: &CarlaOpt
         let (p, h) = frame.world_from_carla(&s.transform);
         let vel = CarlaFrame::world_from_carla_vector(s.velocity);
         let acc = body_from_world(CarlaFrame::world_from_carla_vector(s.acceleration), h);
-        let beta = if vel.truncate().length() > 0.5 {
-            scene::frames::wrap_angle(vel.y.atan2(vel.x) - h)
-        } else {
-            0.0
-        };
+        let beta = if vel.truncate().length() > 0.5 { scene::frames::wrap_angle(vel.y.atan2(vel.x) - h) } else { 0.0 };
         (pos, heading, speed) = (p.truncate(), h, vel.length());
         let yaw_rate = CarlaFrame::world_yaw_rate_from_carla(s.angular_velocity[2]);
         let steering = CarlaFrame::world_steering_from_carla(s.steer_angle);
