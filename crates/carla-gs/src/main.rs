@@ -24,8 +24,10 @@ enum Command {
     Inspect(cmd::inspect::Args),
     /// Choose an adversary, zone and trajectory for a dangerous behaviour (writes scenario.json).
     Reason(cmd::reason::Args),
-    /// Execute a corner-case plan with vehicle dynamics and the CARLA PID tracker.
+    /// Execute a corner-case plan with vehicle dynamics (or a CARLA server) and the CARLA PID tracker.
     Simulate(cmd::simulate::Args),
+    /// Write the scene's road network (lanes, road edges; a flat road without a map) as OpenDRIVE.
+    ExportXodr(cmd::export_xodr::Args),
     /// Reason -> simulate -> measure over scenes x behaviours x t0 x agents; Tables I and II, plots.
     EvalCases(cmd::eval_cases::Args),
     /// Render a 3DGS PLY from a camera (JSON) to a PNG.
@@ -73,6 +75,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Metrics(a) => cmd::metrics::run(a),
         Command::EvalCases(a) => cmd::eval_cases::run(a),
+        Command::ExportXodr(a) => cmd::export_xodr::run(a),
         Command::RenderPly(a) => cmd::splat::render(a),
         Command::BenchSplat(a) => cmd::splat::bench(a),
         Command::Synth(a) => cmd::synth::run(a),

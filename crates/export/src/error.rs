@@ -15,6 +15,9 @@ pub enum ExportError {
     /// A value to export is not a finite number.
     #[error("cannot export `{what}`: {value} is not a finite number")]
     NotFinite { what: String, value: f64 },
+    /// An option of a writer is out of range.
+    #[error("option `{field}`: {message}")]
+    BadOption { field: &'static str, message: String },
     /// The XML is not well-formed (syntax error, mismatched tags, bad attribute).
     #[error("XML error in `{path}` at byte {offset}: {message}")]
     Xml { path: String, offset: u64, message: String },

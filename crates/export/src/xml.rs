@@ -225,6 +225,18 @@ impl<'a> Node<'a> {
     }
 }
 
+/// `v` with at most `decimals` decimals, trailing zeros (and a trailing `.`) trimmed, never
+/// `-0`: the number format of every writer here.
+pub fn num(v: f64, decimals: usize) -> String {
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { s.as_str() };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}
+
 /// Parses a finite `xsd:double` (parameter references such as `$Speed` are not resolved).
 pub fn parse_finite(raw: &str) -> Result<f64, String> {
     let s = raw.trim();

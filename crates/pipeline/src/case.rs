@@ -4,7 +4,7 @@
 //! by (valid, zone hit, success, lower MinTTC). Every attempt is kept and reported, whatever
 //! became of it (no feasible vehicle, a failed stage, an invalid rollout).
 
-use cases::runner::{run_case, CaseConfig, CaseResult, Status};
+use cases::runner::{run_case, CaseConfig, CaseResult, SimulateFn, Status};
 use cases::spec::{AgentName, CaseSpec, T0Spec};
 use reason::backend::Backend;
 use reason::ReasonOptions;
@@ -93,12 +93,19 @@ fn rank(a: &Attempt) -> (bool, bool, bool, f64) {
     (a.valid, a.zone_hit, a.success, -a.min_ttc_center_s.unwrap_or(f64::INFINITY))
 }
 
-/// Runs the request at every time of `t0` (seconds from the first frame) and chooses one case.
-pub fn select_case(
+/// Runs the request at every time of `t0` (seconds from the first frame) and chooses one case,
+/// with the built-in physics.
+pub fn select_case(scene: &Scene, req: &CaseRequest, t0: &T0Choice, backend: Option<&mut dyn Backend>) -> Selection {
+    select_case_with(scene, req, t0, backend, Box::new(sim::simulate))
+}
+
+/// [`select_case`] with another physics backend (`sim::carla::simulate` with its options).
+pub fn select_case_with(
     scene: &Scene,
     req: &CaseRequest,
     t0: &T0Choice,
     mut backend: Option<&mut dyn Backend>,
+    simulate: Box<SimulateFn>,
 ) -> Selection {
     let times = match t0 {
         T0Choice::At(t) => vec![*t],
@@ -108,7 +115,7 @@ pub fn select_case(
         reason: ReasonOptions { adversary: req.adversary.clone(), ..ReasonOptions::default() },
         rollout: sim::RolloutConfig::default(),
         refine_rounds: req.refine_rounds,
-        simulate: Box::new(sim::simulate),
+        simulate,
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;

@@ -5,7 +5,7 @@
 //! summarises all of it (written last). When no attempt produced a case, `run.json` says why for
 //! each t0 and nothing else is written.
 
-use crate::case::{select_case, Attempt, CaseRequest, T0Choice};
+use crate::case::{select_case_with, Attempt, CaseRequest, T0Choice};
 use crate::PipelineError;
 use cases::runner::CaseResult;
 use indicatif::ProgressBar;
@@ -130,7 +130,7 @@ fn clear_outputs(out: &Path) -> Result<(), PipelineError> {
     Ok(())
 }
 
-/// Runs one case and writes its files under `inputs.out`.
+/// Runs one case and writes its files under `inputs.out`, with the built-in physics.
 pub fn run<B: Backend>(
     inputs: &RunInputs<B>,
     req: &CaseRequest,
@@ -138,13 +138,25 @@ pub fn run<B: Backend>(
     llm: Option<&mut dyn reason::backend::Backend>,
     progress: &ProgressBar,
 ) -> Result<RunSummary, PipelineError> {
+    run_with(inputs, req, t0, llm, progress, Box::new(sim::simulate))
+}
+
+/// [`run`] with another physics backend (`sim::carla::simulate` with its options).
+pub fn run_with<B: Backend>(
+    inputs: &RunInputs<B>,
+    req: &CaseRequest,
+    t0: &T0Choice,
+    llm: Option<&mut dyn reason::backend::Backend>,
+    progress: &ProgressBar,
+    simulate: Box<cases::runner::SimulateFn>,
+) -> Result<RunSummary, PipelineError> {
     let out = inputs.out;
     std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     clear_outputs(out)?;
     let layouts = inputs.render.parsed_layouts()?;
     let mut timings = Vec::new();
     let clock = Instant::now();
-    let selection = select_case(inputs.scene, req, t0, llm);
+    let selection = select_case_with(inputs.scene, req, t0, llm, simulate);
     timings.push(Timing { stage: "reason + simulate + measure".into(), seconds: clock.elapsed().as_secs_f64() });
     let mut summary = RunSummary {
         format: RUN_FORMAT.into(),

@@ -24,4 +24,7 @@ pub enum SimError {
     Track(#[from] TrackError),
     #[error("rollout: {0}")]
     Reference(String),
+    /// Its messages say they are about CARLA (and are not repeated as a source).
+    #[error(transparent)]
+    Carla(#[from] crate::carla::CarlaError),
 }

@@ -4,9 +4,11 @@
 //! reference (`reference`, smoothed from noisy logs by `smooth`, tracked by `tracker`) with
 //! friction-limited tyres (`tyre`); `rollout` runs a whole plan in a scene with oriented-box
 //! collision checks against the replayed log (`collision`) and judges the rollout's physical
-//! validity (`validity`). No CARLA server is needed.
+//! validity (`validity`). No CARLA server is needed; users who have one can run the same plans in
+//! CARLA 0.9.16 through a bridge process (`carla`), with the same control law and output.
 
 pub mod actuation;
+pub mod carla;
 pub mod collision;
 pub mod error;
 pub mod model;

@@ -61,18 +61,7 @@ impl Pid {
     }
 }
 
-/// A planar pose in CARLA's left-handed frame: x forward, y right, yaw clockwise (rad).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CarlaPose {
-    pub x: f64,
-    pub y: f64,
-    pub yaw: f64,
-}
-
-/// Our right-handed world (x, y, heading counter-clockwise) to CARLA's left-handed frame.
-pub fn to_carla(x: f64, y: f64, heading: f64) -> CarlaPose {
-    CarlaPose { x, y: -y, yaw: -heading }
-}
+pub use crate::carla::frame::{to_carla, CarlaPose};
 
 /// CARLA's signed angle from the forward vector to the waypoint (left-handed frame).
 pub fn lateral_error(pose: &CarlaPose, waypoint: (f64, f64)) -> f64 {

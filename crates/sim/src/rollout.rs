@@ -10,12 +10,14 @@
 //! steering. The rollout's physical validity (`validity.rs`) is written into the output.
 
 use crate::actuation::ActuationParams;
-use crate::collision::{cuboid, first_overlap, replayed_actors};
+use crate::collision::{cuboid, first_overlap, replayed_actors, Replayed};
 use crate::error::SimError;
+use crate::model::State;
 use crate::params::VehicleParams;
 use crate::reference::start_for_path;
+use crate::reference::Reference;
 use crate::smooth::SmoothingConfig;
-use crate::tracker::{Tracker, TrackerConfig};
+use crate::tracker::{StepRecord, Tracker, TrackerConfig};
 use crate::validity::{assess, BoxSize, ValidityConfig};
 use scene::executed::{ActorInfo, Contact, ExecutedStep, ResampledSeries, EXECUTED_FORMAT};
 use scene::glam::DVec2;
@@ -57,8 +59,25 @@ pub const MAX_START_OFFSET_M: f64 = 5.0;
 pub const BACKEND: &str =
     "carla-gs physics: CommonRoad ST (vehicle2, friction-limited tyres, 1 rad/s steering) + CARLA-like actuation + CARLA VehiclePIDController on a smoothed reference";
 
-/// Runs the plan. Checks the plan against the scene first.
-pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
+/// What every backend starts from: the checked plan's times, the smoothed reference, the
+/// adversary's initial state and box, and the replayed actors.
+pub struct Prepared<'a> {
+    pub adversary: &'a scene::Track,
+    /// The plan's start and end (s).
+    pub t0: f64,
+    pub t_end: f64,
+    /// The rollout's start: the beginning of the adversary's logged run containing t0 (s).
+    pub t_start: f64,
+    pub reference: Reference,
+    /// Initial model state `[x, y, delta, v, psi, psi_dot, beta]`.
+    pub initial: State,
+    /// The adversary's median logged box (length, width, height; m).
+    pub size: [f64; 3],
+    pub actors: Vec<Replayed>,
+}
+
+/// Checks the plan against the scene and prepares a rollout of it.
+pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Prepared<'a>, SimError> {
     plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
     if plan.scene != scene.name {
         return Err(SimError::WrongScene { plan: plan.scene.clone(), scene: scene.name.clone() });
@@ -94,24 +113,46 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
     let t_start = reference.start_time();
     let p0 = reference.position(t_start);
     let initial = [p0.x, p0.y, 0.0, start.speed, start.heading, 0.0, 0.0];
-
     let size = adversary.median_size_lwh();
-    let (adv_box, adv_radius) = cuboid(size[0], size[1]);
     let actors = replayed_actors(scene, &adversary.id);
+    Ok(Prepared { adversary, t0, t_end, t_start, reference, initial, size, actors })
+}
+
+/// Runs the plan with the built-in physics. Checks the plan against the scene first.
+pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
+    let prep = prepare(scene, plan, cfg)?;
+    let (adv_box, adv_radius) = cuboid(prep.size[0], prep.size[1]);
     let mut contact: Option<Contact> = None;
     let tracker = Tracker { config: &cfg.tracker, vehicle: &cfg.vehicle, actuation: &cfg.actuation };
-    let records = tracker.run(&reference, initial, t_start, t_end, |t, x| {
+    let t0 = prep.t0;
+    let records = tracker.run(&prep.reference, prep.initial, prep.t_start, prep.t_end, |t, x| {
         if contact.is_some() || t < t0 - 1e-9 {
             return;
         }
         let pose = Pose2 { t, x: x[0], y: x[1], heading: x[4] };
-        if let Some(a) = first_overlap(&actors, &pose, &adv_box, adv_radius) {
+        if let Some(a) = first_overlap(&prep.actors, &pose, &adv_box, adv_radius) {
             contact = Some(Contact { t, other: a.id.clone(), class: a.class });
         }
     })?;
+    let physics_dt = cfg.tracker.max_physics_dt_s;
+    Ok(finish(scene, plan, cfg, &prep, &records, contact, BACKEND.to_string(), physics_dt))
+}
 
+/// The executed case from a backend's records: validity, steps, the ego's path and resamplings.
+#[allow(clippy::too_many_arguments)]
+pub fn finish(
+    scene: &Scene,
+    plan: &Plan,
+    cfg: &RolloutConfig,
+    prep: &Prepared,
+    records: &[StepRecord],
+    contact: Option<Contact>,
+    backend: String,
+    physics_dt_s: f64,
+) -> Executed {
+    let size = prep.size;
     let size_box = BoxSize { length: size[0], width: size[1] };
-    let validity = assess(&records, t0, contact.as_ref(), scene.map.as_ref(), size_box, &cfg.validity);
+    let validity = assess(records, prep.t0, contact.as_ref(), scene.map.as_ref(), size_box, &cfg.validity);
     let ego_series = scene.ego_series();
     let steps: Vec<ExecutedStep> = records
         .iter()
@@ -132,7 +173,7 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
             ref_y: r.reference.y,
         })
         .collect();
-    let ego_at = |t: f64| sample_series(&ego_series, t).expect("t within the scene span (checked above)");
+    let ego_at = |t: f64| sample_series(&ego_series, t).expect("t within the scene span (checked by prepare)");
     let ego_path: Vec<Pose2> = steps.iter().map(|s| ego_at(s.t)).collect();
     let adv_path: Vec<Pose2> = steps.iter().map(|s| Pose2 { t: s.t, x: s.x, y: s.y, heading: s.heading }).collect();
     let resampled = cfg
@@ -144,19 +185,19 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Execu
             ResampledSeries { rate_hz: *hz, adversary, ego }
         })
         .collect();
-    Ok(Executed {
+    Executed {
         format: EXECUTED_FORMAT.to_string(),
         scene: scene.name.clone(),
-        backend: BACKEND.to_string(),
+        backend,
         plan: plan.clone(),
         control_dt_s: cfg.tracker.control_dt_s,
-        physics_dt_s: cfg.tracker.max_physics_dt_s,
+        physics_dt_s,
         ego: ActorInfo { track_id: scene.ego.track_id.clone(), size_lwh: scene.ego.size_lwh },
-        adversary: ActorInfo { track_id: Some(adversary.id.clone()), size_lwh: size },
+        adversary: ActorInfo { track_id: Some(prep.adversary.id.clone()), size_lwh: size },
         steps,
         ego_path,
         first_contact: contact,
         validity,
         resampled,
-    })
+    }
 }

@@ -95,6 +95,46 @@ pub enum TrackError {
     Config(String),
 }
 
+/// Number of control steps from `t_start` to `t_end` (the last one may be shorter).
+pub fn control_steps(t_start: f64, t_end: f64, control_dt_s: f64) -> usize {
+    ((t_end - t_start) / control_dt_s - 1e-9).ceil().max(0.0) as usize
+}
+
+/// The control law of every backend: each control period, the target speed and the look-ahead
+/// waypoint from the reference (module doc), then CARLA's `VehiclePIDController` in its own units
+/// (km/h, CARLA's left-handed frame). The built-in tracker and the CARLA bridge both call it, so
+/// the two backends command the same way from the same state.
+pub struct ControlLaw {
+    config: TrackerConfig,
+    pid: VehiclePidController,
+}
+
+impl ControlLaw {
+    pub fn new(c: &TrackerConfig) -> Self {
+        ControlLaw { config: *c, pid: VehiclePidController::new(c.lateral, c.longitudinal, c.limits, c.control_dt_s) }
+    }
+
+    /// The command at time `t` for a vehicle at `pos` (m, world) heading `heading` (rad) at
+    /// `speed` (m/s, >= 0).
+    pub fn command(&mut self, reference: &Reference, t: f64, pos: DVec2, heading: f64, speed: f64) -> Control {
+        let c = &self.config;
+        let v_ref = reference.velocity(t + c.control_dt_s);
+        let dir = DVec2::new(heading.cos(), heading.sin());
+        let tangent = v_ref.try_normalize().unwrap_or(dir);
+        let target_speed = (v_ref.length() + c.position_gain * (reference.position(t) - pos).dot(tangent)).max(0.0);
+        // While the reference stands still (a parked car before its manoeuvre), aim straight
+        // ahead: steering towards a far-future point at standstill would wind the wheels up.
+        let wp = if reference.position(t + c.lookahead_s).distance(reference.position(t)) < STANDSTILL_M {
+            pos + dir * c.lookahead_min_m
+        } else {
+            let min_distance = c.lookahead_min_m + c.lookahead_distance_ratio_s * speed;
+            reference.lookahead(t, pos, c.lookahead_s, min_distance)
+        };
+        let wp_c = to_carla(wp.x, wp.y, 0.0);
+        self.pid.run_step(target_speed * 3.6, speed * 3.6, &to_carla(pos.x, pos.y, heading), (wp_c.x, wp_c.y))
+    }
+}
+
 pub struct Tracker<'a> {
     pub config: &'a TrackerConfig,
     pub vehicle: &'a VehicleParams,
@@ -120,7 +160,7 @@ impl Tracker<'_> {
                 c.max_physics_dt_s, c.control_dt_s
             )));
         }
-        let mut pid = VehiclePidController::new(c.lateral, c.longitudinal, c.limits, c.control_dt_s);
+        let mut law = ControlLaw::new(c);
         let mut x = initial;
         let mut pedal = 0.0; // applied throttle - brake, lagging the command
         let mut records = vec![StepRecord {
@@ -132,26 +172,11 @@ impl Tracker<'_> {
             reference: reference.position(t_start),
             friction_limit_s: 0.0,
         }];
-        let n = ((t_end - t_start) / c.control_dt_s - 1e-9).ceil().max(0.0) as usize;
+        let n = control_steps(t_start, t_end, c.control_dt_s);
         for k in 0..n {
             let t = t_start + k as f64 * c.control_dt_s;
             let period = c.control_dt_s.min(t_end - t);
-            let pos = DVec2::new(x[0], x[1]);
-            let v_ref = reference.velocity(t + c.control_dt_s);
-            let heading = DVec2::new(x[4].cos(), x[4].sin());
-            let tangent = v_ref.try_normalize().unwrap_or(heading);
-            let target_speed = (v_ref.length() + c.position_gain * (reference.position(t) - pos).dot(tangent)).max(0.0);
-            // While the reference stands still (a parked car before its manoeuvre), aim straight
-            // ahead: steering towards a far-future point at standstill would wind the wheels up.
-            let wp = if reference.position(t + c.lookahead_s).distance(reference.position(t)) < STANDSTILL_M {
-                pos + heading * c.lookahead_min_m
-            } else {
-                let min_distance = c.lookahead_min_m + c.lookahead_distance_ratio_s * x[3].abs();
-                reference.lookahead(t, pos, c.lookahead_s, min_distance)
-            };
-            let wp_c = to_carla(wp.x, wp.y, 0.0);
-            let control =
-                pid.run_step(target_speed * 3.6, x[3].abs() * 3.6, &to_carla(x[0], x[1], x[4]), (wp_c.x, wp_c.y));
+            let control = law.command(reference, t, DVec2::new(x[0], x[1]), x[4], x[3].abs());
 
             let mut elapsed = 0.0;
             let mut accel = 0.0;

@@ -31,6 +31,8 @@ pub struct Args {
     no_plots: bool,
     #[command(flatten)]
     llm: super::llm::LlmArgs,
+    #[command(flatten)]
+    physics: super::backend::BackendArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -58,7 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             reason: ReasonOptions::default(),
             rollout: sim::RolloutConfig::default(),
             refine_rounds: a.refine_rounds,
-            simulate: Box::new(sim::simulate),
+            simulate: a.physics.simulate_fn()?,
         },
     };
     let llm = a.llm.clone();

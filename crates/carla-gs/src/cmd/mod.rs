@@ -1,6 +1,8 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
+pub mod backend;
 pub mod demo;
 pub mod eval_cases;
+pub mod export_xodr;
 pub mod ingest;
 pub mod inspect;
 pub mod llm;

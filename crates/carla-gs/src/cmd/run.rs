@@ -75,6 +75,8 @@ pub struct RunArgs {
     video: VideoArgs,
     #[command(flatten)]
     llm: super::llm::LlmArgs,
+    #[command(flatten)]
+    physics: super::backend::BackendArgs,
 }
 
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
@@ -102,12 +104,13 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let settings = a.video.settings();
     let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
     let pb = count_bar("frames");
-    let s = pipeline::run::run(
+    let s = pipeline::run::run_with(
         &inputs,
         &req,
         &t0,
         llm.as_mut().map(|b| b.as_mut() as &mut dyn reason::backend::Backend),
         &pb,
+        a.physics.simulate_fn()?,
     )
     .with_context(|| format!("run of {} failed", a.scene.display()))?;
     pb.finish_and_clear();

@@ -1,4 +1,4 @@
-//! `carla-gs simulate <scenario.json> --scene <dir> --out <executed.json>`
+//! `carla-gs simulate <scenario.json> --scene <dir> --out <executed.json> [--backend builtin|carla ...]`
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -21,6 +21,8 @@ pub struct Args {
     /// Also resample the executed trajectory at this video rate (Hz).
     #[arg(long)]
     fps: Option<f64>,
+    #[command(flatten)]
+    physics: super::backend::BackendArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -39,8 +41,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::ensure!(fps > 0.0 && fps.is_finite(), "--fps must be a positive rate in Hz, got {fps}");
         cfg.resample_hz.push(fps);
     }
+    let simulate = a.physics.simulate_fn()?;
     let executed =
-        sim::simulate(&scene, &plan, &cfg).with_context(|| format!("{}: cannot execute the plan", a.plan.display()))?;
+        simulate(&scene, &plan, &cfg).with_context(|| format!("{}: cannot execute the plan", a.plan.display()))?;
     scene::format::write_json_pretty(&a.out, &executed)?;
     let in_interval: Vec<_> = executed.steps.iter().filter(|s| s.t >= plan.start_time_s - 1e-9).collect();
     let rms = (in_interval.iter().map(|s| (s.x - s.ref_x).powi(2) + (s.y - s.ref_y).powi(2)).sum::<f64>()

@@ -5,9 +5,10 @@
 
 use super::{ADVERSARY, EGO, OTHER_PREFIX};
 use crate::error::ExportError;
+use crate::ground::{ego_ground_series, ground_series, interp};
 use scene::frames::wrap_angle;
 use scene::motion::sample_series;
-use scene::{Executed, ObjectClass, Scene, Track};
+use scene::{Executed, ObjectClass, Scene};
 use std::collections::HashSet;
 
 /// A vertex on the OpenSCENARIO clock (`t = t_log - t_start`).
@@ -122,29 +123,6 @@ fn unique_name(taken: &mut HashSet<String>, base: &str) -> String {
     name
 }
 
-/// `(t, ground z)` of a track's valid states: box-centre z minus half the state's height.
-fn ground_series(scene: &Scene, track: &Track) -> Vec<(f64, f64)> {
-    track.valid_states().map(|s| (scene.frames[s.frame].timestamp_s, s.center.z - s.size_lwh[2] / 2.0)).collect()
-}
-
-/// `(t, ground z)` of the ego per frame. With an ego track (WOMD) the ego origin is the box
-/// centre; otherwise (Waymo vehicle frame, KITTI, synthetic) it is on the ground.
-fn ego_ground_series(scene: &Scene) -> Vec<(f64, f64)> {
-    let lift = if scene.ego.track_id.is_some() { scene.ego.size_lwh[2] / 2.0 } else { 0.0 };
-    scene.frames.iter().map(|f| (f.timestamp_s, f.world_from_ego.translation().z - lift)).collect()
-}
-
-/// Linear interpolation in a time-sorted series, held at its ends; 0 for an empty series.
-fn interp(series: &[(f64, f64)], t: f64) -> f64 {
-    let i = series.partition_point(|p| p.0 <= t);
-    match (i.checked_sub(1).and_then(|j| series.get(j)), series.get(i)) {
-        (Some(a), Some(b)) if b.0 > a.0 => a.1 + (t - a.0) / (b.0 - a.0) * (b.1 - a.1),
-        (Some(a), _) => a.1,
-        (None, Some(b)) => b.1,
-        (None, None) => 0.0,
-    }
-}
-
 pub(super) fn check_finite(actors: &[Actor]) -> Result<(), ExportError> {
     for a in actors {
         for (k, v) in a.size_lwh.iter().enumerate() {
@@ -175,14 +153,5 @@ mod tests {
         let mut taken: HashSet<String> = [EGO.to_string()].into();
         assert_eq!(unique_name(&mut taken, &format!("actor_{}", sanitize("a-b::c$"))), "actor_a_b__c_");
         assert_eq!(unique_name(&mut taken, "actor_a_b__c_"), "actor_a_b__c__2");
-    }
-
-    #[test]
-    fn interpolation_holds_the_ends() {
-        let s = [(0.0, 1.0), (1.0, 3.0)];
-        assert_eq!(interp(&s, -1.0), 1.0);
-        assert_eq!(interp(&s, 0.5), 2.0);
-        assert_eq!(interp(&s, 2.0), 3.0);
-        assert_eq!(interp(&[], 2.0), 0.0);
     }
 }

@@ -9,7 +9,7 @@ use super::{
     PROP_ROLE, PROP_SCENE, PROP_TRACK_ID, XOSC_FORMAT,
 };
 use crate::error::ExportError;
-use crate::xml::Element;
+use crate::xml::{num, Element};
 use scene::{Executed, ObjectClass, Scene};
 
 /// Writes one executed corner case as an OpenSCENARIO 1.2 document (see the module doc for the
@@ -26,16 +26,6 @@ pub fn write_xosc(scene: &Scene, executed: &Executed, opts: &XoscOptions) -> Res
 }
 
 /// A number with at most `decimals` decimals, trailing zeros trimmed, never `-0`.
-fn num(v: f64, decimals: usize) -> String {
-    let s = format!("{v:.decimals$}");
-    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { s.as_str() };
-    if s == "-0" {
-        "0".into()
-    } else {
-        s.to_string()
-    }
-}
-
 fn len(v: f64) -> String {
     num(v, 6)
 }

@@ -1,0 +1,32 @@
+//! `carla-gs export-xodr <scene_dir> --out <file.xodr>`: the scene's road network as OpenDRIVE.
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene directory.
+    scene: PathBuf,
+    /// The OpenDRIVE file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Width of every lane (m): WOMD lane centres carry none.
+    #[arg(long, default_value_t = 3.5)]
+    lane_width: f64,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let scene = scene::load_scene(&a.scene)?;
+    let opts = export::XodrOptions { lane_width_m: a.lane_width, ..Default::default() };
+    let built = export::write_xodr_file(&a.out, &scene, &opts)?;
+    let map = scene.map.as_ref();
+    let (lanes, edges) = map.map_or((0, 0), |m| (m.lanes.len(), m.road_edges.len()));
+    let flat = if lanes == 0 { " (no lanes in the map: one flat road covering the scene)" } else { "" };
+    println!(
+        "wrote {}: {} roads from {lanes} lane centres and {edges} road edges{flat}",
+        a.out.display(),
+        built.network.roads.len()
+    );
+    for s in &built.skipped {
+        println!("skipped {s}");
+    }
+    Ok(())
+}
