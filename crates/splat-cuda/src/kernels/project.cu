@@ -93,7 +93,7 @@ __device__ void sh_basis_grad_dot(int deg, const float* d, const float* w, float
     }
 }
 
-__device__ __forceinline__ bool finite(float v) { return isfinite(v); }
+__device__ __forceinline__ bool fin(float v) { return isfinite(v); }
 
 // Projects Gaussian i; false if culled or degenerate (as splat::project::project_full).
 __device__ bool project_one(int i, const float* means, const float* log_scales, const float* rots,
@@ -101,7 +101,7 @@ __device__ bool project_one(int i, const float* means, const float* log_scales, 
     float m[3] = {means[3 * i], means[3 * i + 1], means[3 * i + 2]};
 #pragma unroll
     for (int a = 0; a < 3; a++) f.p[a] = cam.r[3 * a] * m[0] + cam.r[3 * a + 1] * m[1] + cam.r[3 * a + 2] * m[2] + cam.t[a];
-    if (!(f.p[2] > cam.znear && f.p[2] < cam.zfar) || !finite(f.p[0]) || !finite(f.p[1]) || !finite(f.p[2])) return false;
+    if (!(f.p[2] > cam.znear && f.p[2] < cam.zfar) || !fin(f.p[0]) || !fin(f.p[1]) || !fin(f.p[2])) return false;
     float qw = rots[4 * i], qx = rots[4 * i + 1], qy = rots[4 * i + 2], qz = rots[4 * i + 3];
     float n = sqrtf(qw * qw + qx * qx + qy * qy + qz * qz);
     if (n > 0.0f) { qw /= n; qx /= n; qy /= n; qz /= n; } else { qw = 1.0f; qx = qy = qz = 0.0f; }
@@ -112,7 +112,7 @@ __device__ bool project_one(int i, const float* means, const float* log_scales, 
 #pragma unroll
     for (int a = 0; a < 3; a++) {
         f.s[a] = expf(log_scales[3 * i + a]);
-        if (!finite(f.s[a])) return false;
+        if (!fin(f.s[a])) return false;
     }
 #pragma unroll
     for (int a = 0; a < 3; a++)
@@ -153,7 +153,7 @@ __device__ bool project_one(int i, const float* means, const float* log_scales, 
     cov[0] += EPS2D;
     cov[3] += EPS2D;
     float det = cov[0] * cov[3] - cov[1] * cov[2];
-    if (!(det > 0.0f) || !finite(det)) return false;
+    if (!(det > 0.0f) || !fin(det)) return false;
 #pragma unroll
     for (int k = 0; k < 4; k++) f.cov[k] = cov[k];
     f.sig = 1.0f / (1.0f + expf(-logits[i]));
@@ -200,8 +200,8 @@ __device__ bool project_one(int i, const float* means, const float* log_scales, 
         out.normal[a] = o.normals_world ? cam.r[a] * nc[0] + cam.r[3 + a] * nc[1] + cam.r[6 + a] * nc[2] : nc[a];
     bool ok = true;
 #pragma unroll
-    for (int a = 0; a < 3; a++) ok = ok && finite(out.conic[a]) && finite(out.color[a]) && finite(nc[a]);
-    ok = ok && finite(out.mean[0]) && finite(out.mean[1]) && finite(out.extent[0]) && finite(out.extent[1]);
+    for (int a = 0; a < 3; a++) ok = ok && fin(out.conic[a]) && fin(out.color[a]) && fin(nc[a]);
+    ok = ok && fin(out.mean[0]) && fin(out.mean[1]) && fin(out.extent[0]) && fin(out.extent[1]);
     return ok;
 }
 
