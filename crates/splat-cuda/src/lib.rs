@@ -6,14 +6,17 @@
 //!
 //! `device` finds the GPU and compiles the kernels, `state` holds the device buffers one render
 //! keeps between iterations, `pipeline` launches the kernels (projection, key emission, radix
-//! sort, tile ranges, rasterisation, backward) and `host` converts to and from the `splat` types.
+//! sort, tile ranges, rasterisation, backward), `host` converts to and from the `splat` types and
+//! `inspect` reads back what a render decided (tile orders, per-pixel counts) for tests.
 
 mod device;
 mod host;
+mod inspect;
 mod pipeline;
 mod state;
 
 pub use device::Gpu;
+pub use inspect::{Decisions, DeviceProj};
 pub use state::Session;
 
 /// Why the CUDA backend cannot run.
