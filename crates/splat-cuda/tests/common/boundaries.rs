@@ -13,8 +13,9 @@
 //!   early-stop threshold 1e-4;
 //! - `normal`: the Gaussian's normal axis (smallest scale) or its facing sign is a near tie.
 //!
-//! Everything not flagged must then match strictly; the Gaussians reaching a flagged pixel are
-//! left out of the strict gradient comparison. Nothing here looks at the device's outputs.
+//! Everything not flagged must then match strictly; the parity test gives flagged pixels no
+//! upstream gradient, so every Gaussian's gradient is compared strictly over the rest. Nothing
+//! here looks at the device's outputs (images, transmittances, gradients).
 
 use splat::project::{project_full, Projected};
 use splat::render::{Context, RenderOptions};
@@ -30,8 +31,6 @@ const ALPHA_MAX: f64 = 0.99;
 #[derive(Debug, Default)]
 pub struct Flags {
     pub pixel: Vec<bool>,
-    /// By Gaussian index: reaches a flagged pixel.
-    pub gaussian: Vec<bool>,
     /// Flagged pixels by reason: order, cutoff, clamp, stop, normal.
     pub reasons: [usize; 5],
 }
@@ -39,9 +38,6 @@ pub struct Flags {
 impl Flags {
     pub fn pixels(&self) -> usize {
         self.pixel.iter().filter(|f| **f).count()
-    }
-    pub fn gaussians(&self) -> usize {
-        self.gaussian.iter().filter(|f| **f).count()
     }
 }
 
@@ -79,14 +75,13 @@ fn unstable_normals(g: &Gaussians, cam: &Camera, aa: bool) -> Vec<bool> {
 /// device's projection `dec` may take the other way.
 pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec: &Decisions) -> Flags {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut out = Flags { pixel: vec![false; w * h], gaussian: vec![false; g.len()], reasons: [0; 5] };
+    let mut out = Flags { pixel: vec![false; w * h], reasons: [0; 5] };
     let unstable = unstable_normals(g, cam, opts.antialiased);
     // Candidates: the reference's boxes padded, so a Gaussian the device bins into one more
     // tile is still looked at (its alpha there is at the cut-off).
     let padded: Vec<Projected> =
         cc.proj.iter().map(|p| Projected { extent: p.extent.map(|e| e * 1.001 + 0.05), ..*p }).collect();
     let tiles = bin(&padded, w, h, opts.smooth);
-    let mut live = Vec::new();
     for y in 0..h {
         for x in 0..w {
             let q = [x as f64 + 0.5, y as f64 + 0.5];
@@ -94,7 +89,6 @@ pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec
             let (mut t, mut err_t, mut stopped) = (1.0f64, 0.0f64, false);
             let mut why = [false; 5];
             let mut prev: Option<(f32, usize)> = None;
-            live.clear();
             for &pi in list {
                 let (p, hot) = (&cc.proj[pi as usize], &cc.hot[pi as usize]);
                 let (lr, power) = ln_ratio(p.mean, p.conic, hot.power_min, q);
@@ -102,7 +96,6 @@ pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec
                     // Culled by the device only: fine where the reference's alpha is below 1/255.
                     if lr >= -SLACK {
                         why[1] = true;
-                        live.push(p.index);
                     }
                     continue;
                 };
@@ -111,7 +104,6 @@ pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec
                 if lr < -margin {
                     continue;
                 }
-                live.push(p.index);
                 let key = (d.depth, p.index);
                 if let Some(k0) = prev {
                     why[0] |= k0.0.total_cmp(&key.0).then(k0.1.cmp(&key.1)).is_gt();
@@ -140,9 +132,6 @@ pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec
                 out.pixel[y * w + x] = true;
                 for (r, b) in out.reasons.iter_mut().zip(why) {
                     *r += b as usize;
-                }
-                for &i in &live {
-                    out.gaussian[i] = true;
                 }
             }
         }
