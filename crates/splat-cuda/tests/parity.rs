@@ -5,8 +5,8 @@
 //! every pixel `boundaries::flag` does not flag (a pixel where the device's f32 projection puts
 //! a depth order, the 1/255 cut-off, the 0.99 clamp, the early stop or a normal's axis on the
 //! other side of, or within rounding of, the reference's decision), and on every gradient with
-//! the flagged pixels' upstream weights set to zero; the flagged share is bounded (1%) and
-//! printed, with how many flagged pixels really differ. Without a CUDA driver or GPU each test prints SKIP and the
+//! the flagged pixels' upstream weights set to zero; the flagged share is bounded (1% of pixels by a
+//! decision, 0.1% of Gaussians with a near-tie normal) and printed, with how many flagged pixels really differ. Without a CUDA driver or GPU each test prints SKIP and the
 //! reason; `no_gpu_is_a_clean_error` checks that reason is an error, not a panic.
 
 use splat::backward::{backward_into, Gradients, Upstream};
@@ -119,9 +119,13 @@ fn pixel_diffs(a: &Image, b: &Image) -> Vec<(f64, &'static str)> {
             for c in 0..k {
                 d.push(((a.features[i * k + c] - b.features[i * k + c]).abs(), "features"));
             }
-            d.into_iter()
-                .map(|(v, n)| (if v.is_nan() { f64::INFINITY } else { v }, n))
-                .fold((0.0, "none"), |m, x| if x.0 > m.0 { x } else { m })
+            d.into_iter().map(|(v, n)| (if v.is_nan() { f64::INFINITY } else { v }, n)).fold((0.0, "none"), |m, x| {
+                if x.0 > m.0 {
+                    x
+                } else {
+                    m
+                }
+            })
         })
         .collect()
 }
@@ -206,11 +210,18 @@ fn compare(gpu: &Gpu, g: &Gaussians, cam: &Camera, nf: usize, opts: &RenderOptio
     let (grad, worst) = grad_rel(&gg, &cg);
     let diffs = pixel_diffs(&gi, &ci);
     let argmax = |keep: &dyn Fn(usize) -> bool| {
-        diffs.iter().enumerate().filter(|(i, _)| keep(*i)).fold((0usize, 0f64, "none"), |m, (i, d)| if d.0 > m.1 { (i, d.0, d.1) } else { m })
+        diffs.iter().enumerate().filter(|(i, _)| keep(*i)).fold((0usize, 0f64, "none"), |m, (i, d)| {
+            if d.0 > m.1 {
+                (i, d.0, d.1)
+            } else {
+                m
+            }
+        })
     };
     let (worst_px, forward, _) = argmax(&|_| true);
     let (worst_clean_px, clean_forward, clean_channel) = argmax(&|i| !flags.pixel[i]);
-    for (what, px, d) in [("worst pixel", worst_px, forward), ("worst unflagged pixel", worst_clean_px, clean_forward)] {
+    for (what, px, d) in [("worst pixel", worst_px, forward), ("worst unflagged pixel", worst_clean_px, clean_forward)]
+    {
         if d > 1e-4 {
             println!(" {what}: differs by {d:.3e} in {} (flagged: {})", diffs[px].1, flags.pixel[px]);
             boundaries::dump_pixel(&cc, &dec, opts, px % ci.width, px / ci.width);
@@ -277,10 +288,10 @@ fn random_scenes_match_the_cpu_reference() {
         println!(
             "case {case:2} ({what}, {} Gaussians, {}x{}, degree {degree}, aa {aa}, world normals {world}, {nf} features)\n  \
              all values: forward max abs {:.3e} ({} of {} over 1e-4)\n  \
-             flagged near an f32/f64 decision: {} of {px} pixels (order {}, cutoff {}, clamp {}, stop {}, normal {}); {} of them differ by > 1e-4\n  \
+             flagged near an f32/f64 decision: {} of {px} pixels (order {}, cutoff {}, clamp {}, stop {}, normal {} from {} Gaussians); {} of them differ by > 1e-4\n  \
              unflagged: forward max abs {:.3e} ({}); gradient max rel {:.3e} ({}); projection: {} culled by one side only, mean {:.2e} px, depth {:.2e} rel",
             g.len(), cam.width, cam.height, o.forward, o.over, o.values,
-            fl.pixels(), fl.reasons[0], fl.reasons[1], fl.reasons[2], fl.reasons[3], fl.reasons[4], o.flips,
+            fl.pixels(), fl.reasons[0], fl.reasons[1], fl.reasons[2], fl.reasons[3], fl.reasons[4], fl.unstable, o.flips,
             o.clean_forward, o.clean_channel, o.grad, o.worst, o.culled_apart, o.mean_err, o.depth_err
         );
         worst_f = worst_f.max(o.clean_forward);
@@ -289,9 +300,16 @@ fn random_scenes_match_the_cpu_reference() {
         let ctx = format!("seed {seed} case {case}");
         assert!(o.clean_forward <= 1e-4, "{ctx}: unflagged pixels differ by {}", o.clean_forward);
         assert!(o.grad <= 1e-3, "{ctx}: {} gradients differ by {}", o.worst, o.grad);
-        assert!(fl.pixels() * 100 <= px, "{ctx}: {} of {px} pixels flagged (more than 1%)", fl.pixels());
+        let dp = fl.decision_pixels();
+        assert!(dp * 100 <= px, "{ctx}: {dp} of {px} pixels flagged by order, cut-off, clamp or stop (more than 1%)");
+        assert!(fl.unstable * 1000 <= g.len(), "{ctx}: {} Gaussians with a near-tie normal", fl.unstable);
         assert!(o.culled_apart * 1000 <= g.len(), "{ctx}: {} Gaussians culled by one side only", o.culled_apart);
-        assert!(o.mean_err <= 1e-3 && o.depth_err <= 1e-5, "{ctx}: projection differs ({} px, {} rel)", o.mean_err, o.depth_err);
+        assert!(
+            o.mean_err <= 1e-3 && o.depth_err <= 1e-5,
+            "{ctx}: projection differs ({} px, {} rel)",
+            o.mean_err,
+            o.depth_err
+        );
     }
     println!(
         "all random cases: unflagged forward max abs {worst_f:.3e}, gradient max rel {worst_g:.3e}; {flips} flagged pixels differ by > 1e-4"

@@ -33,11 +33,17 @@ pub struct Flags {
     pub pixel: Vec<bool>,
     /// Flagged pixels by reason: order, cutoff, clamp, stop, normal.
     pub reasons: [usize; 5],
+    /// Gaussians with a near-tie normal (one large one can flag many pixels).
+    pub unstable: usize,
 }
 
 impl Flags {
     pub fn pixels(&self) -> usize {
         self.pixel.iter().filter(|f| **f).count()
+    }
+    /// Flagged pixels with a reason other than a normal tie.
+    pub fn decision_pixels(&self) -> usize {
+        self.reasons[..4].iter().sum::<usize>().min(self.pixels())
     }
 }
 
@@ -75,8 +81,9 @@ fn unstable_normals(g: &Gaussians, cam: &Camera, aa: bool) -> Vec<bool> {
 /// device's projection `dec` may take the other way.
 pub fn flag(g: &Gaussians, cam: &Camera, opts: &RenderOptions, cc: &Context, dec: &Decisions) -> Flags {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut out = Flags { pixel: vec![false; w * h], reasons: [0; 5] };
     let unstable = unstable_normals(g, cam, opts.antialiased);
+    let n_unstable = unstable.iter().filter(|u| **u).count();
+    let mut out = Flags { pixel: vec![false; w * h], reasons: [0; 5], unstable: n_unstable };
     // Candidates: the reference's boxes padded, so a Gaussian the device bins into one more
     // tile is still looked at (its alpha there is at the cut-off).
     let padded: Vec<Projected> =
@@ -144,8 +151,13 @@ pub fn dump_pixel(cc: &Context, dec: &Decisions, opts: &RenderOptions, x: usize,
     let q = [x as f64 + 0.5, y as f64 + 0.5];
     let pix = y * dec.width + x;
     let ti = dec.tile_of(x, y);
-    println!("  pixel ({x}, {y}): reference walked {} of its tile's {} Gaussians, device {} of {}",
-        cc.last[pix], cc.tiles.lists[ti].len(), dec.last[pix], dec.lists[ti].len());
+    println!(
+        "  pixel ({x}, {y}): reference walked {} of its tile's {} Gaussians, device {} of {}",
+        cc.last[pix],
+        cc.tiles.lists[ti].len(),
+        dec.last[pix],
+        dec.lists[ti].len()
+    );
     let mut t = 1.0;
     let mut rows = Vec::new();
     for &pi in &cc.tiles.lists[ti][..cc.last[pix] as usize] {
