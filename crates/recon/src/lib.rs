@@ -9,6 +9,7 @@
 
 pub mod ablate;
 pub mod backend;
+pub mod backend_cuda;
 pub mod camera;
 pub mod checkpoint;
 pub mod compose;

@@ -3,7 +3,8 @@
 use super::progress::count_bar;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use recon::backend::Cpu;
+use recon::backend::{Backend, Cpu};
+use recon::backend_cuda::Cuda;
 use recon::compose::Layers;
 use recon::data::PriorLoader;
 use recon::TrainConfig;
@@ -12,7 +13,17 @@ use std::path::{Path, PathBuf};
 /// Where the rasterizer runs.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum Device {
+    /// The f64 CPU reference.
     Cpu,
+    /// The CUDA rasterizer on GPU 0 (needs the NVIDIA driver and NVRTC).
+    Cuda,
+}
+
+/// Opens the CUDA backend, or says why this machine cannot run it.
+pub fn open_cuda() -> anyhow::Result<Cuda> {
+    let c = Cuda::new().map_err(|e| anyhow::anyhow!("--device cuda: {e}"))?;
+    eprintln!("device: {}", c.describe());
+    Ok(c)
 }
 
 #[derive(clap::Args)]
@@ -77,7 +88,16 @@ pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> 
 }
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {
-    let Device::Cpu = a.device;
+    match a.device {
+        Device::Cpu => train_on(a, Cpu),
+        Device::Cuda => {
+            let c = open_cuda()?;
+            train_on(a, c)
+        }
+    }
+}
+
+fn train_on<B: Backend>(a: TrainArgs, backend: B) -> anyhow::Result<()> {
     let cfg = a.settings.config()?;
     let priors = priors_of(&a.scene)?;
     let pb = ProgressBar::new(cfg.iterations as u64);
@@ -92,7 +112,7 @@ pub fn train(a: TrainArgs) -> anyhow::Result<()> {
         stop_after: a.stop_after,
         priors: priors.as_ref(),
     };
-    let s = recon::session::train(req, Cpu, &pb)?;
+    let s = recon::session::train(req, backend, &pb)?;
     pb.finish_and_clear();
     println!(
         "trained {} iterations ({} train / {} held-out views) in {:.1} s ({:.2} it/s): {} Gaussians, loss {:.4}, recent train PSNR {:.2} dB -> {}",
@@ -164,6 +184,8 @@ pub struct RenderArgs {
     /// Draw only the tracked actors (over black).
     #[arg(long)]
     actors_only: bool,
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
 }
 
 pub fn render(a: RenderArgs) -> anyhow::Result<()> {
@@ -182,7 +204,10 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     let sc = recon::camera::splat_camera(cam, &world_from_ego, a.scale.unwrap_or(record.scale))?;
     let layers = if a.actors_only { Layers::ActorsOnly } else { Layers::All };
     let bar = count_bar("render");
-    let d = recon::view::draw(&Cpu, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None);
+    let d = match a.device {
+        Device::Cpu => recon::view::draw(&Cpu, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
+        Device::Cuda => recon::view::draw(&open_cuda()?, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
+    };
     bar.finish_and_clear();
     recon::view::save_png(&a.out, d.width, d.height, &d.rgb)?;
     println!(

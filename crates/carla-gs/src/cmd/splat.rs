@@ -1,5 +1,5 @@
-//! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png>` and
-//! `carla-gs bench-splat [--gaussians N --width W --height H --iters K] --out <json>`.
+//! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png> [--device cpu|cuda]` and
+//! `carla-gs bench-splat [--cases NxWxH,... --iters K --devices cpu,cuda] --out <json>`.
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
 //! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far).
 use anyhow::Context;
@@ -20,6 +20,8 @@ pub struct RenderArgs {
     background: String,
     #[arg(long)]
     antialiased: bool,
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: super::recon::Device,
 }
 
 fn read_camera(path: &PathBuf) -> anyhow::Result<splat::Camera> {
@@ -43,7 +45,15 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     anyhow::ensure!(bg.len() == 3, "--background: expected three numbers r,g,b");
     let opts = RenderOptions { background: [bg[0], bg[1], bg[2]], antialiased: a.antialiased, ..Default::default() };
     let t = Instant::now();
-    let img = rasterize(&g, &cam, &Features::default(), &opts);
+    let img = match a.device {
+        super::recon::Device::Cpu => rasterize(&g, &cam, &Features::default(), &opts),
+        super::recon::Device::Cuda => {
+            let gpu = splat_cuda::Gpu::new().map_err(|e| anyhow::anyhow!("--device cuda: {e}"))?;
+            let mut img = Image::default();
+            gpu.render(&g, &cam, &Features::default(), &opts, &mut splat_cuda::Session::default(), &mut img)?;
+            img
+        }
+    };
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let bytes: Vec<u8> = img.rgb.iter().flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).context("image buffer size")?;
@@ -61,12 +71,75 @@ pub struct BenchArgs {
     cases: String,
     #[arg(long, default_value_t = 3)]
     iters: usize,
+    /// Comma-separated devices: cpu, cuda.
+    #[arg(long, default_value = "cpu")]
+    devices: String,
+    /// Timed iterations on the GPU (after 3 warm-up ones).
+    #[arg(long, default_value_t = 50)]
+    gpu_iters: usize,
     #[arg(long)]
     out: PathBuf,
 }
 
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The CUDA rasterizer on one case: the model and upstream gradients stay on the device (as in a
+/// device-side training loop); each iteration is forward + backward, synchronised, host clock.
+/// Also one round through the f64 boundary (`Gpu::render` + `backward_into`), as the trainer's
+/// `Backend` uses it today.
+fn bench_cuda(
+    gpu: &splat_cuda::Gpu,
+    g: &splat::Gaussians,
+    cam: &splat::Camera,
+    up: &Upstream,
+    iters: usize,
+) -> anyhow::Result<serde_json::Value> {
+    let opts = RenderOptions::default();
+    let mut sess = splat_cuda::Session::default();
+    gpu.upload(&mut sess, g, &Features::default())?;
+    gpu.forward_resident(&mut sess, cam, &opts)?;
+    gpu.upload_upstream(&mut sess, up)?;
+    let (mut fwd, mut both) = (Vec::new(), Vec::new());
+    for i in 0..iters + 3 {
+        gpu.synchronize()?;
+        let t = Instant::now();
+        gpu.forward_resident(&mut sess, cam, &opts)?;
+        gpu.synchronize()?;
+        let f = t.elapsed().as_secs_f64();
+        gpu.backward_resident(&mut sess)?;
+        gpu.synchronize()?;
+        if i >= 3 {
+            fwd.push(f);
+            both.push(t.elapsed().as_secs_f64());
+        }
+    }
+    let (mut img, mut grads) = (Image::default(), Gradients::default());
+    let t = Instant::now();
+    gpu.render(g, cam, &Features::default(), &opts, &mut sess, &mut img)?;
+    gpu.backward_into(g, &mut sess, up, &mut grads)?;
+    let boundary = t.elapsed().as_secs_f64();
+    Ok(
+        serde_json::json!({"device": gpu.describe(), "forward_s": median(&mut fwd), "forward_backward_s": median(&mut both),
+        "iters": iters, "intersections": sess.intersections(), "with_f64_host_boundary_s": boundary}),
+    )
+}
+
 pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
     let mut results = Vec::new();
+    let devices: Vec<&str> = a.devices.split(',').map(str::trim).collect();
+    if let Some(d) = devices.iter().find(|d| !matches!(**d, "cpu" | "cuda")) {
+        anyhow::bail!("--devices: `{d}` is neither cpu nor cuda");
+    }
+    let cpu = devices.contains(&"cpu");
+    let gpu = if devices.contains(&"cuda") {
+        Some(splat_cuda::Gpu::new().map_err(|e| anyhow::anyhow!("--devices cuda: {e}"))?)
+    } else {
+        None
+    };
+    anyhow::ensure!(a.gpu_iters > 0, "--gpu-iters must be positive");
     for case in a.cases.split(',') {
         let v: Vec<usize> = case
             .split('x')
@@ -76,14 +149,29 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         anyhow::ensure!(v.len() == 3, "--cases: `{case}` is not NxWxH");
         let (n, w, h) = (v[0], v[1] as u32, v[2] as u32);
         let cam = splat::Camera::at_origin(w, h, 0.8 * w as f64);
+        let n_px = w as usize * h as usize;
+        let (ones, zeros, zeros3) = (vec![[1.0; 3]; n_px], vec![0.0; n_px], vec![[0.0; 3]; n_px]);
+        let up = Upstream { rgb: &ones, alpha: &zeros, depth: &zeros, normal: &zeros3, features: &[] };
         let g = splat::random::random_gaussians(n, &cam, 3, 7);
         let opts = RenderOptions::default();
         let (mut fwd, mut both) = (Vec::new(), Vec::new());
         // Like a training loop: the image, context and gradients keep their memory between
         // iterations; upstream gradients d loss / d rgb = 1.
-        let n_px = w as usize * h as usize;
-        let (ones, zeros, zeros3) = (vec![[1.0; 3]; n_px], vec![0.0; n_px], vec![[0.0; 3]; n_px]);
-        let up = Upstream { rgb: &ones, alpha: &zeros, depth: &zeros, normal: &zeros3, features: &[] };
+        let mut row = serde_json::json!({"gaussians": n, "width": w, "height": h});
+        if let Some(gpu) = &gpu {
+            let r = bench_cuda(gpu, &g, &cam, &up, a.gpu_iters)?;
+            println!(
+                "{n} Gaussians at {w}x{h} on {}: forward {:.3} ms, forward+backward {:.3} ms",
+                gpu.describe(),
+                r["forward_s"].as_f64().unwrap_or(0.0) * 1e3,
+                r["forward_backward_s"].as_f64().unwrap_or(0.0) * 1e3
+            );
+            row["cuda"] = r;
+        }
+        if !cpu {
+            results.push(row);
+            continue;
+        }
         let (mut img, mut ctx, mut grads) = (Image::default(), RenderContext::default(), Gradients::default());
         for _ in 0..a.iters {
             let t = Instant::now();
@@ -93,10 +181,6 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
             backward_into(&g, &cam, &Features::default(), &opts, &ctx, &up, &mut grads);
             both.push(fwd[fwd.len() - 1] + t2.elapsed().as_secs_f64());
         }
-        let median = |v: &mut Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
         let (f, b) = (median(&mut fwd), median(&mut both));
         println!(
             "{n} Gaussians at {w}x{h}: forward {:.3} s ({:.2}/s), forward+backward {:.3} s ({:.2}/s)",
@@ -105,9 +189,10 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
             b,
             1.0 / b
         );
-        results.push(serde_json::json!({"gaussians": n, "width": w, "height": h, "iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon::current_num_threads()}));
+        row["cpu"] = serde_json::json!({"iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon::current_num_threads()});
+        results.push(row);
     }
-    let json = serde_json::json!({"benchmark": "splat CPU rasterizer", "results": results});
+    let json = serde_json::json!({"benchmark": "splat rasterizer, forward and forward+backward per iteration", "results": results});
     scene::write_file_atomic(&a.out, &serde_json::to_vec_pretty(&json)?)?;
     println!("wrote {}", a.out.display());
     Ok(())

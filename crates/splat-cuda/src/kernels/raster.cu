@@ -1,0 +1,193 @@
+// Forward and backward rasterisation (splat::raster and splat::raster_backward, in f32): one
+// 16x16 block per tile, one thread per pixel, the tile's depth-sorted Gaussians staged through
+// shared memory in batches of 256. The alpha test is splat::tiles::alpha_at's.
+
+struct Hot {
+    float mean[2], conic[3], opacity, power_min, extent[2];
+};
+
+__device__ __forceinline__ bool alpha_at(const Hot& h, float qx, float qy, int smooth, float& alpha, float& e,
+                                         bool& clamped) {
+    float dx = qx - h.mean[0], dy = qy - h.mean[1];
+    if (!smooth && (fabsf(dx) > h.extent[0] || fabsf(dy) > h.extent[1])) return false;
+    float power = -0.5f * (h.conic[0] * dx * dx + h.conic[2] * dy * dy) - h.conic[1] * dx * dy;
+    if (power > 0.0f || (!smooth && power < h.power_min)) return false;
+    e = expf(power);
+    float raw = h.opacity * e;
+    clamped = !smooth && raw > ALPHA_MAX;
+    alpha = clamped ? ALPHA_MAX : raw;
+    return smooth || alpha >= ALPHA_MIN;
+}
+
+__device__ __forceinline__ Hot hot_of(const Proj& p) {
+    Hot h;
+    h.mean[0] = p.mean[0]; h.mean[1] = p.mean[1];
+    h.conic[0] = p.conic[0]; h.conic[1] = p.conic[1]; h.conic[2] = p.conic[2];
+    h.opacity = p.opacity; h.power_min = p.power_min;
+    h.extent[0] = p.extent[0]; h.extent[1] = p.extent[1];
+    return h;
+}
+
+#define BATCH 256
+
+extern "C" __global__ void __launch_bounds__(256) raster_forward(
+    int width, int height, Opts o, const uint2* ranges, const unsigned* vals, const Proj* proj, const float* feats,
+    float* out_rgb, float* out_alpha, float* out_depth, float* out_normal, float* out_feat, float* final_t,
+    unsigned* last) {
+    __shared__ Proj sp[BATCH];
+    __shared__ unsigned sid[BATCH];
+    int tile = blockIdx.y * gridDim.x + blockIdx.x;
+    int px = blockIdx.x * TILE + threadIdx.x, py = blockIdx.y * TILE + threadIdx.y;
+    int tid = threadIdx.y * TILE + threadIdx.x;
+    bool inside = px < width && py < height;
+    float qx = (float)px + 0.5f, qy = (float)py + 0.5f;
+    uint2 range = ranges[tile];
+    bool done = !inside;
+    float T = 1.0f, rgb[3] = {0.0f, 0.0f, 0.0f}, depth = 0.0f, nrm[3] = {0.0f, 0.0f, 0.0f};
+    float fsum[NF > 0 ? NF : 1];
+    for (int c = 0; c < NF; c++) fsum[c] = 0.0f;
+    unsigned my_last = 0;
+    for (unsigned start = range.x; start < range.y; start += BATCH) {
+        if (__syncthreads_count(done) == BATCH) break;
+        unsigned k = start + tid;
+        if (k < range.y) {
+            unsigned id = vals[k];
+            sid[tid] = id;
+            sp[tid] = proj[id];
+        }
+        __syncthreads();
+        unsigned cnt = min((unsigned)BATCH, range.y - start);
+        for (unsigned j = 0; j < cnt && !done; j++) {
+            const Proj& g = sp[j];
+            float alpha, e;
+            bool cl;
+            if (!alpha_at(hot_of(g), qx, qy, o.smooth, alpha, e, cl)) continue;
+            float next = T * (1.0f - alpha);
+            if (!o.smooth && next < T_MIN) {
+                done = true;
+                break;
+            }
+            float w = alpha * T;
+            for (int c = 0; c < 3; c++) {
+                rgb[c] += w * fmaxf(g.color[c], 0.0f);
+                nrm[c] += w * g.normal[c];
+            }
+            depth += w * g.depth;
+            for (int c = 0; c < NF; c++) fsum[c] += w * feats[(size_t)sid[j] * NF + c];
+            T = next;
+            my_last = start - range.x + j + 1;
+        }
+    }
+    if (!inside) return;
+    int pix = py * width + px;
+    for (int c = 0; c < 3; c++) {
+        out_rgb[3 * pix + c] = rgb[c] + T * o.bg[c];
+        out_normal[3 * pix + c] = nrm[c];
+    }
+    out_alpha[pix] = 1.0f - T;
+    out_depth[pix] = depth;
+    for (int c = 0; c < NF; c++) out_feat[(size_t)pix * NF + c] = fsum[c];
+    final_t[pix] = T;
+    last[pix] = my_last;
+}
+
+extern "C" __global__ void __launch_bounds__(256) raster_backward(
+    int width, int height, Opts o, const uint2* ranges, const unsigned* vals, const Proj* proj, const float* feats,
+    const float* final_t, const unsigned* last, const float* up_rgb, const float* up_alpha, const float* up_depth,
+    const float* up_normal, const float* up_feat, float* g2) {
+    __shared__ Proj sp[BATCH];
+    __shared__ unsigned sid[BATCH];
+    __shared__ unsigned max_last;
+    int tile = blockIdx.y * gridDim.x + blockIdx.x;
+    int px = blockIdx.x * TILE + threadIdx.x, py = blockIdx.y * TILE + threadIdx.y;
+    int tid = threadIdx.y * TILE + threadIdx.x;
+    int lane = tid & 31;
+    bool inside = px < width && py < height;
+    int pix = py * width + px;
+    float qx = (float)px + 0.5f, qy = (float)py + 0.5f;
+    uint2 range = ranges[tile];
+    float T = 1.0f, t_final = 1.0f;
+    unsigned my_last = 0;
+    float u_rgb[3] = {0.0f, 0.0f, 0.0f}, u_n[3] = {0.0f, 0.0f, 0.0f}, u_a = 0.0f, u_d = 0.0f;
+    float u_f[NF > 0 ? NF : 1], s_f[NF > 0 ? NF : 1];
+    for (int c = 0; c < NF; c++) { u_f[c] = 0.0f; s_f[c] = 0.0f; }
+    if (inside) {
+        T = t_final = final_t[pix];
+        my_last = last[pix];
+        for (int c = 0; c < 3; c++) { u_rgb[c] = up_rgb[3 * pix + c]; u_n[c] = up_normal[3 * pix + c]; }
+        u_a = up_alpha[pix];
+        u_d = up_depth[pix];
+        for (int c = 0; c < NF; c++) u_f[c] = up_feat[(size_t)pix * NF + c];
+    }
+    float b_rgb[3] = {o.bg[0] * t_final, o.bg[1] * t_final, o.bg[2] * t_final}, b_n[3] = {0.0f, 0.0f, 0.0f},
+          b_d = 0.0f;
+    if (tid == 0) max_last = 0;
+    __syncthreads();
+    atomicMax(&max_last, my_last);
+    __syncthreads();
+    unsigned end = range.x + max_last;
+    for (unsigned stop = end; stop > range.x;) {
+        unsigned start = stop > range.x + BATCH ? stop - BATCH : range.x;
+        unsigned cnt = stop - start;
+        __syncthreads();
+        if (tid < cnt) {
+            unsigned id = vals[start + tid];
+            sid[tid] = id;
+            sp[tid] = proj[id];
+        }
+        __syncthreads();
+        for (int j = (int)cnt - 1; j >= 0; j--) {
+            const Proj& g = sp[j];
+            unsigned slot = start - range.x + (unsigned)j;
+            float alpha = 0.0f, e = 0.0f;
+            bool cl = false;
+            bool hit = slot < my_last && alpha_at(hot_of(g), qx, qy, o.smooth, alpha, e, cl);
+            if (!__any_sync(0xffffffffu, hit)) continue;
+            float v[G2N];
+            for (int k = 0; k < G2N; k++) v[k] = 0.0f;
+            if (hit) {
+                float inv = 1.0f / (1.0f - alpha);
+                float ti = T * inv;
+                float w = alpha * ti;
+                float vc[3];
+                for (int c = 0; c < 3; c++) {
+                    vc[c] = fmaxf(g.color[c], 0.0f);
+                    if (g.color[c] > 0.0f) v[6 + c] = u_rgb[c] * w;
+                    v[10 + c] = u_n[c] * w;
+                }
+                v[9] = u_d * w;
+                float d_alpha = u_a * t_final * inv + u_d * (ti * g.depth - b_d * inv);
+                for (int c = 0; c < 3; c++)
+                    d_alpha += u_rgb[c] * (ti * vc[c] - b_rgb[c] * inv) + u_n[c] * (ti * g.normal[c] - b_n[c] * inv);
+                for (int c = 0; c < NF; c++) {
+                    float fi = feats[(size_t)sid[j] * NF + c];
+                    v[13 + c] = u_f[c] * w;
+                    d_alpha += u_f[c] * (ti * fi - s_f[c] * inv);
+                    s_f[c] += w * fi;
+                }
+                for (int c = 0; c < 3; c++) {
+                    b_rgb[c] += w * vc[c];
+                    b_n[c] += w * g.normal[c];
+                }
+                b_d += w * g.depth;
+                if (!cl) {
+                    v[5] = d_alpha * e;
+                    float dp = d_alpha * alpha;
+                    float dx = qx - g.mean[0], dy = qy - g.mean[1];
+                    v[2] = dp * -0.5f * dx * dx;
+                    v[3] = dp * -dx * dy;
+                    v[4] = dp * -0.5f * dy * dy;
+                    v[0] = dp * (g.conic[0] * dx + g.conic[1] * dy);
+                    v[1] = dp * (g.conic[1] * dx + g.conic[2] * dy);
+                }
+                T = ti;
+            }
+            for (int k = 0; k < G2N; k++) {
+                float s = v[k];
+                for (int off = 16; off > 0; off >>= 1) s += __shfl_down_sync(0xffffffffu, s, off);
+                if (lane == 0 && s != 0.0f) atomicAdd(&g2[(size_t)sid[j] * G2N + k], s);
+            }
+        }
+        stop = start;
+    }
+}

@@ -1,0 +1,371 @@
+//! The kernel launches. Forward: project every Gaussian and count its tiles, exclusive-scan the
+//! counts, emit one `(tile << 32 | depth bits, index)` pair per tile overlap, radix-sort them
+//! (only the bits the tile count needs), find each tile's range, rasterise. Backward: zero the
+//! screen-space accumulators, rasterise back to front (warp-reduced atomics per Gaussian), then
+//! the per-Gaussian chain rule. The one host round trip is the intersection count.
+
+use crate::device::{Gpu, Kernels};
+use crate::state::{grow, Buffers, Shape, G2, PROJ};
+use crate::CudaError;
+use cudarc::driver::{CudaSlice, DeviceRepr, LaunchConfig, PushKernelArg};
+use splat::render::{RenderOptions, TILE};
+use splat::Camera;
+
+/// The camera as project.cu's `Cam`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CamArg {
+    r: [f32; 9],
+    t: [f32; 3],
+    center: [f32; 3],
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    near: f32,
+    far: f32,
+    width: i32,
+    height: i32,
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for CamArg {}
+
+/// The render options as project.cu's `Opts`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct OptsArg {
+    bg: [f32; 3],
+    antialiased: i32,
+    smooth: i32,
+    normals_world: i32,
+    sh_degree: i32,
+    tiles_x: i32,
+    tiles_y: i32,
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for OptsArg {}
+
+pub(crate) fn cam_arg(cam: &Camera) -> CamArg {
+    let m = &cam.camera_from_world;
+    let c = cam.center();
+    CamArg {
+        r: std::array::from_fn(|k| m[k / 3][k % 3] as f32),
+        t: [m[0][3] as f32, m[1][3] as f32, m[2][3] as f32],
+        center: c.map(|v| v as f32),
+        fx: cam.fx as f32,
+        fy: cam.fy as f32,
+        cx: cam.cx as f32,
+        cy: cam.cy as f32,
+        near: cam.near as f32,
+        far: cam.far as f32,
+        width: cam.width as i32,
+        height: cam.height as i32,
+    }
+}
+
+pub(crate) fn opts_arg(o: &RenderOptions, sh: &Shape) -> OptsArg {
+    OptsArg {
+        bg: o.background.map(|v| v as f32),
+        antialiased: o.antialiased as i32,
+        smooth: o.smooth as i32,
+        normals_world: o.normals_world as i32,
+        sh_degree: sh.sh_degree as i32,
+        tiles_x: sh.tiles_x as i32,
+        tiles_y: sh.tiles_y as i32,
+    }
+}
+
+fn blocks(n: usize, per: usize) -> u32 {
+    n.div_ceil(per).max(1) as u32
+}
+
+fn linear(n: usize) -> LaunchConfig {
+    LaunchConfig { grid_dim: (blocks(n, 256), 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
+}
+
+const SCAN_BLOCK: usize = 1024;
+const SORT_CHUNK: usize = 256 * 16;
+
+impl Gpu {
+    /// Exclusive scan of `n` values of `input` into `out` (recursive over block totals).
+    fn scan(
+        &self,
+        k: &Kernels,
+        input: &CudaSlice<u32>,
+        out: &mut CudaSlice<u32>,
+        n: usize,
+        sums: &mut Vec<CudaSlice<u32>>,
+        level: usize,
+    ) -> Result<(), CudaError> {
+        let s = &self.stream;
+        let nb = n.div_ceil(SCAN_BLOCK).max(1);
+        if sums.len() <= level {
+            sums.push(s.alloc_zeros(1)?);
+        }
+        grow(s, &mut sums[level], nb)?;
+        let cfg = LaunchConfig { grid_dim: (nb as u32, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 };
+        let n32 = n as u32;
+        // SAFETY: buffers hold n (input, out) and nb (sums) values, as the kernel reads and writes.
+        unsafe {
+            s.launch_builder(&k.scan_blocks).arg(&n32).arg(input).arg(&mut *out).arg(&mut sums[level]).launch(cfg)
+        }?;
+        if nb > 1 {
+            let mut block_sums = std::mem::replace(&mut sums[level], s.alloc_zeros(1)?);
+            let mut scanned = s.alloc_zeros::<u32>(nb)?;
+            self.scan(k, &block_sums, &mut scanned, nb, sums, level + 1)?;
+            // SAFETY: out holds n values; scanned holds one per block.
+            unsafe { s.launch_builder(&k.scan_add).arg(&n32).arg(&mut *out).arg(&scanned).launch(linear(n)) }?;
+            std::mem::swap(&mut sums[level], &mut block_sums);
+        }
+        Ok(())
+    }
+
+    /// Stable LSD radix sort of `m` pairs in `keys[0]`/`vals[0]` over bits `0..bits`; returns
+    /// which of the two buffers holds the result.
+    fn sort(&self, k: &Kernels, b: &mut Buffers, m: usize, bits: u32) -> Result<usize, CudaError> {
+        let s = &self.stream;
+        let nb = m.div_ceil(SORT_CHUNK).max(1);
+        grow(s, &mut b.hist, 256 * nb)?;
+        grow(s, &mut b.hist_scan, 256 * nb)?;
+        let (m32, nb32) = (m as u32, nb as u32);
+        let cfg = LaunchConfig { grid_dim: (nb32, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 };
+        let mut cur = 0;
+        let mut shift = 0u32;
+        while shift < bits {
+            let sh = shift as i32;
+            // SAFETY: keys hold m values, hist 256 * nb.
+            unsafe {
+                s.launch_builder(&k.radix_hist)
+                    .arg(&m32)
+                    .arg(&b.keys[cur])
+                    .arg(&sh)
+                    .arg(&nb32)
+                    .arg(&mut b.hist)
+                    .launch(cfg)
+            }?;
+            let (hist, mut hist_scan) = (&b.hist, std::mem::replace(&mut b.hist_scan, s.alloc_zeros(1)?));
+            self.scan(k, hist, &mut hist_scan, 256 * nb, &mut b.scan_sums, 0)?;
+            let [k0, k1] = &mut b.keys;
+            let [v0, v1] = &mut b.vals;
+            let (kin, kout, vin, vout) = if cur == 0 { (&*k0, k1, &*v0, v1) } else { (&*k1, k0, &*v1, v0) };
+            // SAFETY: both key and value buffers hold m values; offsets 256 * nb.
+            unsafe {
+                s.launch_builder(&k.radix_scatter)
+                    .arg(&m32)
+                    .arg(kin)
+                    .arg(vin)
+                    .arg(kout)
+                    .arg(vout)
+                    .arg(&sh)
+                    .arg(&nb32)
+                    .arg(&hist_scan)
+                    .launch(cfg)
+            }?;
+            b.hist_scan = hist_scan;
+            cur ^= 1;
+            shift += 8;
+        }
+        Ok(cur)
+    }
+
+    /// The forward pass over the model already in `b` (`sh.n` Gaussians).
+    pub(crate) fn forward(
+        &self,
+        b: &mut Buffers,
+        sh: &mut Shape,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<(), CudaError> {
+        let k = self.kernels(sh.nf)?;
+        let s = &self.stream;
+        let (n, nf) = (sh.n, sh.nf);
+        (sh.width, sh.height) = (cam.width as usize, cam.height as usize);
+        (sh.tiles_x, sh.tiles_y) = (sh.width.div_ceil(TILE), sh.height.div_ceil(TILE));
+        let tiles = sh.tiles_x * sh.tiles_y;
+        let (ca, oa) = (cam_arg(cam), opts_arg(opts, sh));
+        grow(s, &mut b.proj, n * PROJ)?;
+        grow(s, &mut b.valid, n)?;
+        grow(s, &mut b.counts, n)?;
+        grow(s, &mut b.offsets, n)?;
+        grow(s, &mut b.rects, n * 4)?;
+        let n32 = n as i32;
+        // SAFETY: every per-Gaussian buffer holds n rows of the layout project.cu expects.
+        unsafe {
+            s.launch_builder(&k.project)
+                .arg(&n32)
+                .arg(&b.means)
+                .arg(&b.log_scales)
+                .arg(&b.rotations)
+                .arg(&b.logits)
+                .arg(&b.sh)
+                .arg(&ca)
+                .arg(&oa)
+                .arg(&mut b.proj)
+                .arg(&mut b.valid)
+                .arg(&mut b.counts)
+                .arg(&mut b.rects)
+                .launch(linear(n))
+        }?;
+        let mut offsets = std::mem::replace(&mut b.offsets, s.alloc_zeros(1)?);
+        self.scan(&k, &b.counts, &mut offsets, n, &mut b.scan_sums, 0)?;
+        b.offsets = offsets;
+        let nu = n as u32;
+        // SAFETY: total holds one value; offsets and counts n.
+        unsafe {
+            s.launch_builder(&k.scan_total)
+                .arg(&nu)
+                .arg(&b.offsets)
+                .arg(&b.counts)
+                .arg(&mut b.total)
+                .launch(LaunchConfig::for_num_elems(1))
+        }?;
+        let mut total = [0u32];
+        s.memcpy_dtoh(&b.total.slice(0..1), &mut total)?;
+        let m = total[0] as usize;
+        sh.m = m;
+        for i in 0..2 {
+            grow(s, &mut b.keys[i], m)?;
+            grow(s, &mut b.vals[i], m)?;
+        }
+        let tx = sh.tiles_x as i32;
+        // SAFETY: keys and values hold m = sum(counts) entries.
+        unsafe {
+            s.launch_builder(&k.emit_keys)
+                .arg(&n32)
+                .arg(&b.proj)
+                .arg(&b.counts)
+                .arg(&b.offsets)
+                .arg(&b.rects)
+                .arg(&tx)
+                .arg(&mut b.keys[0])
+                .arg(&mut b.vals[0])
+                .launch(linear(n))
+        }?;
+        let tile_bits = usize::BITS - (tiles.max(2) - 1).leading_zeros();
+        sh.sorted = if m > 0 { self.sort(&k, b, m, 32 + tile_bits)? } else { 0 };
+        grow(s, &mut b.ranges, 2 * tiles)?;
+        s.memset_zeros(&mut b.ranges)?;
+        let m32 = m as u32;
+        if m > 0 {
+            // SAFETY: ranges hold 2 values per tile; keys m.
+            unsafe {
+                s.launch_builder(&k.tile_ranges).arg(&m32).arg(&b.keys[sh.sorted]).arg(&mut b.ranges).launch(linear(m))
+            }?;
+        }
+        let p = sh.width * sh.height;
+        for (buf, len) in [(&mut b.rgb, 3 * p), (&mut b.alpha, p), (&mut b.depth, p), (&mut b.normal, 3 * p)] {
+            grow(s, buf, len)?;
+        }
+        grow(s, &mut b.feat_img, nf * p)?;
+        grow(s, &mut b.final_t, p)?;
+        grow(s, &mut b.last, p)?;
+        let (w, h) = (sh.width as i32, sh.height as i32);
+        let cfg = LaunchConfig {
+            grid_dim: (sh.tiles_x as u32, sh.tiles_y as u32, 1),
+            block_dim: (TILE as u32, TILE as u32, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: images hold p pixels (times channels); ranges one pair per tile of the grid.
+        unsafe {
+            s.launch_builder(&k.raster_forward)
+                .arg(&w)
+                .arg(&h)
+                .arg(&oa)
+                .arg(&b.ranges)
+                .arg(&b.vals[sh.sorted])
+                .arg(&b.proj)
+                .arg(&b.feats)
+                .arg(&mut b.rgb)
+                .arg(&mut b.alpha)
+                .arg(&mut b.depth)
+                .arg(&mut b.normal)
+                .arg(&mut b.feat_img)
+                .arg(&mut b.final_t)
+                .arg(&mut b.last)
+                .launch(cfg)
+        }?;
+        sh.rendered = true;
+        Ok(())
+    }
+
+    /// The backward pass for the last forward pass, with the upstream gradients already in `b`.
+    pub(crate) fn backward(
+        &self,
+        b: &mut Buffers,
+        sh: &Shape,
+        cam: &Camera,
+        opts: &RenderOptions,
+    ) -> Result<(), CudaError> {
+        let k = self.kernels(sh.nf)?;
+        let s = &self.stream;
+        let (n, nf) = (sh.n, sh.nf);
+        let kc = (sh.sh_degree + 1) * (sh.sh_degree + 1) * 3;
+        let (ca, oa) = (cam_arg(cam), opts_arg(opts, sh));
+        grow(s, &mut b.g2, n * (G2 + nf))?;
+        s.memset_zeros(&mut b.g2)?;
+        for (buf, len) in [
+            (&mut b.g_means, 3 * n),
+            (&mut b.g_log_scales, 3 * n),
+            (&mut b.g_rotations, 4 * n),
+            (&mut b.g_logits, n),
+            (&mut b.g_sh, kc * n),
+            (&mut b.g_feat, nf * n),
+            (&mut b.g_mean2d, n),
+        ] {
+            grow(s, buf, len)?;
+            s.memset_zeros(buf)?;
+        }
+        let (w, h) = (sh.width as i32, sh.height as i32);
+        let cfg = LaunchConfig {
+            grid_dim: (sh.tiles_x as u32, sh.tiles_y as u32, 1),
+            block_dim: (TILE as u32, TILE as u32, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: as in the forward pass; g2 holds n rows of 13 + nf.
+        unsafe {
+            s.launch_builder(&k.raster_backward)
+                .arg(&w)
+                .arg(&h)
+                .arg(&oa)
+                .arg(&b.ranges)
+                .arg(&b.vals[sh.sorted])
+                .arg(&b.proj)
+                .arg(&b.feats)
+                .arg(&b.final_t)
+                .arg(&b.last)
+                .arg(&b.up_rgb)
+                .arg(&b.up_alpha)
+                .arg(&b.up_depth)
+                .arg(&b.up_normal)
+                .arg(&b.up_feat)
+                .arg(&mut b.g2)
+                .launch(cfg)
+        }?;
+        let n32 = n as i32;
+        // SAFETY: every gradient buffer holds n rows of its parameter's width.
+        unsafe {
+            s.launch_builder(&k.chain)
+                .arg(&n32)
+                .arg(&b.means)
+                .arg(&b.log_scales)
+                .arg(&b.rotations)
+                .arg(&b.logits)
+                .arg(&b.sh)
+                .arg(&ca)
+                .arg(&oa)
+                .arg(&b.valid)
+                .arg(&b.g2)
+                .arg(&mut b.g_means)
+                .arg(&mut b.g_log_scales)
+                .arg(&mut b.g_rotations)
+                .arg(&mut b.g_logits)
+                .arg(&mut b.g_sh)
+                .arg(&mut b.g_feat)
+                .arg(&mut b.g_mean2d)
+                .launch(linear(n))
+        }?;
+        Ok(())
+    }
+}
