@@ -89,3 +89,23 @@ fn killed_training_resumes_to_the_same_model_and_renders() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("normals"));
 }
+
+/// `demo` and `train` with `--device cuda` stop with a clear error on a machine without CUDA,
+/// before doing any work (skipped, with a note, where a GPU is present: there the commands would run).
+#[test]
+fn device_cuda_without_a_gpu_is_a_clear_error() {
+    if splat_cuda::Gpu::new().is_ok() {
+        println!("SKIP: a CUDA GPU is present; the no-GPU error cannot be seen here");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let none = tmp.path().join("none");
+    let n = s(&none);
+    for args in [vec!["demo", "--out", n, "--device", "cuda"], vec!["train", n, "--out", n, "--device", "cuda"]] {
+        let out = carla_gs(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(err.contains("cuda") || err.contains("CUDA"), "{args:?}: {err}");
+        assert!(!none.exists(), "{args:?} wrote {n} before failing");
+    }
+}

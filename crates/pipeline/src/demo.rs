@@ -16,7 +16,7 @@ use crate::run::{run, RenderSettings, RunInputs, RunSummary};
 use crate::PipelineError;
 use cases::spec::{AgentName, T0Spec};
 use indicatif::ProgressBar;
-use recon::backend::Cpu;
+use recon::backend::{Backend, Cpu};
 use recon::TrainConfig;
 use scene::Behavior;
 use serde::{Deserialize, Serialize};
@@ -116,6 +116,17 @@ impl Stages<'_> {
 
 /// Runs the demo into `out` (created if needed) and writes `report.html` there.
 pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Result<DemoResult, PipelineError> {
+    run_demo_on(&Cpu, cfg, out, progress)
+}
+
+/// [`run_demo`] with the rasterizer `backend` for training, evaluation and the videos. A backend
+/// other than the CPU reference is part of the training stage's cache key (its f32 model differs).
+pub fn run_demo_on<B: Backend + Clone>(
+    backend: &B,
+    cfg: &DemoConfig,
+    out: &Path,
+    progress: &dyn DemoProgress,
+) -> Result<DemoResult, PipelineError> {
     let clock = Instant::now();
     std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     let mut stages = Stages { timings: vec![], progress };
@@ -151,8 +162,12 @@ pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Re
     })?;
 
     let model_dir = out.join("model");
-    let train_key = json!({"priors": priors_key, "train": cfg.train});
-    stages.cached("train (CPU)", &model_dir, &train_key, || {
+    let train_key = match backend.name() {
+        "cpu" => json!({"priors": priors_key, "train": cfg.train}),
+        device => json!({"priors": priors_key, "train": cfg.train, "device": device}),
+    };
+    let train_stage = format!("train ({})", backend.name().to_uppercase());
+    stages.cached(&train_stage, &model_dir, &train_key, || {
         let priors = recon::targets::prior_loader(&scene_dir)?;
         let resume = recon::model_io::load_config(&model_dir).is_ok_and(|c| c == cfg.train)
             && model_dir.join("checkpoint.bin").is_file();
@@ -165,7 +180,7 @@ pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Re
             stop_after: None,
             priors: priors.as_ref(),
         };
-        recon::session::train(req, Cpu, &pb)?;
+        recon::session::train(req, backend.clone(), &pb)?;
         pb.finish_and_clear();
         Ok(())
     })?;
@@ -174,10 +189,10 @@ pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Re
     let eval_key = json!({"model": train_key});
     stages.cached("evaluate reconstruction", &eval_dir, &eval_key, || {
         let priors = recon::targets::prior_loader(&scene_dir)?;
-        let report = recon::eval::evaluate_model_dir(&Cpu, &model_dir, &scene_dir, priors.as_ref())?;
+        let report = recon::eval::evaluate_model_dir(backend, &model_dir, &scene_dir, priors.as_ref())?;
         std::fs::create_dir_all(&eval_dir).map_err(PipelineError::io(&eval_dir))?;
         scene::format::write_json_pretty(&eval_dir.join("eval.json"), &report)?;
-        crate::report::held_out_pictures(&Cpu, &model_dir, &scene_dir, &eval_dir)?;
+        crate::report::held_out_pictures(backend, &model_dir, &scene_dir, &eval_dir)?;
         Ok(())
     })?;
     let recon: recon::eval::EvalReport = scene::format::read_json(&eval_dir.join("eval.json"))?;
@@ -197,7 +212,7 @@ pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Re
         };
         let key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": cfg.render});
         stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
-            let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &cfg.render, out: &case_dir };
+            let inputs = RunInputs { scene: &scene, model: &model, backend, render: &cfg.render, out: &case_dir };
             let pb = progress.bar();
             run(&inputs, &req, &T0Choice::Search(T0Spec::Every(0.5)), None, &pb)?;
             pb.finish_and_clear();

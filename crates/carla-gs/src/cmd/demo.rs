@@ -1,7 +1,9 @@
 //! `carla-gs demo [--out demo-out]`: the whole pipeline on embedded defaults (`pipeline::demo`).
 
+use super::recon::{open_cuda, Device};
 use indicatif::{ProgressBar, ProgressStyle};
-use pipeline::demo::{run_demo, DemoConfig, DemoProgress};
+use pipeline::demo::{run_demo_on, DemoConfig, DemoProgress};
+use recon::backend::Cpu;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -17,6 +19,9 @@ pub struct Args {
     agent: String,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Where the rasterizer runs (training, evaluation, videos).
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
 }
 
 struct Terminal;
@@ -49,7 +54,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         cfg.agent.as_str()
     );
     cfg.seed = a.seed;
-    let r = run_demo(&cfg, &a.out, &Terminal)?;
+    let r = match a.device {
+        Device::Cpu => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
+        Device::Cuda => run_demo_on(&open_cuda()?, &cfg, &a.out, &Terminal)?,
+    };
     println!("stage                          seconds");
     for t in &r.timings {
         println!("{:<30} {:>8.1}{}", t.stage, t.seconds, if t.cached { "  (cached)" } else { "" });

@@ -136,11 +136,16 @@ pub struct EvalArgs {
     /// Print the report as JSON (per view included).
     #[arg(long)]
     json: bool,
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
 }
 
 pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let priors = priors_of(&a.scene)?;
-    let r = recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?;
+    let r = match a.device {
+        Device::Cpu => recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?,
+        Device::Cuda => recon::eval::evaluate_model_dir(&open_cuda()?, &a.model, &a.scene, priors.as_ref())?,
+    };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
         return Ok(());
@@ -229,6 +234,8 @@ pub struct AblateArgs {
     out: PathBuf,
     #[command(flatten)]
     settings: Settings,
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
 }
 
 pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
@@ -242,7 +249,10 @@ pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
         pb.set_prefix(name.to_string());
         pb
     };
-    let rows = recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?;
+    let rows = match a.device {
+        Device::Cpu => recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
+        Device::Cuda => recon::ablate::ablate(&open_cuda()?, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
+    };
     let md = recon::ablate::markdown(&rows, cfg.iterations);
     scene::write_file_atomic(&a.out.join("table3.md"), md.as_bytes())?;
     scene::format::write_json_pretty(&a.out.join("table3.json"), &rows)?;

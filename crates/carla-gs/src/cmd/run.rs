@@ -2,6 +2,7 @@
 //! argument parsing around the `pipeline` and `render` crates.
 
 use super::progress::count_bar;
+use super::recon::{open_cuda, Device};
 use anyhow::Context;
 use cases::spec::{AgentName, T0Spec};
 use pipeline::case::{CaseRequest, T0Choice};
@@ -27,6 +28,9 @@ pub struct VideoArgs {
     /// Write PNG frames instead of MP4 even when ffmpeg is installed.
     #[arg(long)]
     pub png: bool,
+    /// Where the rasterizer runs.
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: Device,
 }
 
 impl VideoArgs {
@@ -102,16 +106,20 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         _ => None,
     };
     let settings = a.video.settings();
-    let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
     let pb = count_bar("frames");
-    let s = pipeline::run::run_with(
-        &inputs,
-        &req,
-        &t0,
-        llm.as_mut().map(|b| b.as_mut() as &mut dyn reason::backend::Backend),
-        &pb,
-        a.physics.simulate_fn()?,
-    )
+    let llm = llm.as_mut().map(|b| b.as_mut() as &mut dyn reason::backend::Backend);
+    let simulate = a.physics.simulate_fn()?;
+    let s = match a.video.device {
+        Device::Cpu => {
+            let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
+            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+        }
+        Device::Cuda => {
+            let backend = open_cuda()?;
+            let inputs = RunInputs { scene: &scene, model: &model, backend: &backend, render: &settings, out: &a.out };
+            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+        }
+    }
     .with_context(|| format!("run of {} failed", a.scene.display()))?;
     pb.finish_and_clear();
     print_run(&s, &a.out);
@@ -193,7 +201,6 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
     let [layout] = layouts.as_slice() else {
         anyhow::bail!("--layouts: `video` writes one layout, got {}", layouts.len())
     };
-    let view = render::video::CaseView::new(&Cpu, &model, &scene, &executed)?;
     let spec = render::video::VideoSpec {
         layout: layout.clone(),
         fps: settings.fps,
@@ -203,7 +210,15 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let pb = count_bar("frames");
-    let out = view.render_video(&spec, &a.out, &pb)?;
+    let out = match a.video.device {
+        Device::Cpu => {
+            render::video::CaseView::new(&Cpu, &model, &scene, &executed)?.render_video(&spec, &a.out, &pb)?
+        }
+        Device::Cuda => {
+            let backend = open_cuda()?;
+            render::video::CaseView::new(&backend, &model, &scene, &executed)?.render_video(&spec, &a.out, &pb)?
+        }
+    };
     pb.finish_and_clear();
     println!("wrote {} ({} frames, {}x{} at {} fps)", out.path.display(), out.frames, out.width, out.height, out.fps);
     if let render::encode::VideoKind::PngSequence { why } = &out.kind {
