@@ -10,7 +10,9 @@
 //! differences at dt, inside validation's 40 m/s and 8 m/s^2), it never reverses or moves
 //! backwards relative to the car's body, and its yaw rate (<= 1.2 rad/s), curvature
 //! (<= 0.25 1/m) and curvature rate (<= 1.0 1/(m s), a loose bound against kinks) are ones a car can
-//! track; a car at rest starts along its body heading. Each
+//! track (curvature also measured on the path's geometry, at any speed); a car at rest leaves
+//! along its body heading ([`crate::from_rest`]: path first, then a minimum-jerk speed profile
+//! starting at [`START_ACCEL`]). Each
 //! candidate is measured the way the metrics will measure its execution: the predicted centre
 //! MinTTC and whether, at the closest approach to the ego, it is inside the target zone. Score
 //! ([`score`]): predicted MinTTC >= 1 s ranks last, then lower MinTTC, then 0.02 per m/s^2 of
@@ -18,6 +20,7 @@
 //! do not realize the behaviour and are dropped.
 
 use crate::behavior::{candidate_zones, spec, EndPolicy};
+use crate::from_rest::FromRest;
 use crate::quintic::{limits, trackability, End, Quintic};
 use crate::target::sample_target;
 use crate::world::{Kin, Vehicle, World};
@@ -142,10 +145,18 @@ pub fn trajectory_to_aim(
     let ego_end = world.ego_kin(t_end);
     let v_end = end_velocity(end_policy(b, world, target, ttc), &ego_end, target, v, aim_ttc);
     let body = DVec2::new(v.now.heading.cos(), v.now.heading.sin());
-    // A car at rest can only start along its body heading (forward).
-    let a0 = if v.now.speed() < 1.0 { body * START_ACCEL } else { DVec2::ZERO };
-    let q = Quintic::new(End { p: v.now.p, v: v.now.v, a: a0 }, End { p: target, v: v_end, a: DVec2::ZERO }, ttc);
-    let waypoints = q.waypoints(world.t0, dt);
+    // A car at rest can only start along its body heading (forward): path first, then speed.
+    let motion = if v.now.speed() < 1.0 {
+        let speed = v.now.v.dot(body).max(0.0);
+        Motion::FromRest(FromRest::new(v.now.p, v.now.heading, speed, START_ACCEL, target, v_end, ttc)?)
+    } else {
+        Motion::Quintic(Quintic::new(
+            End { p: v.now.p, v: v.now.v, a: DVec2::ZERO },
+            End { p: target, v: v_end, a: DVec2::ZERO },
+            ttc,
+        ))
+    };
+    let waypoints = motion.waypoints(world.t0, dt);
     let l = limits(&waypoints);
     if l.max_speed > PLAN_MAX_SPEED || l.max_accel > PLAN_MAX_ACCEL || l.max_jerk > PLAN_MAX_JERK || l.reversal {
         return None;
@@ -172,10 +183,32 @@ pub fn trajectory_to_aim(
         .map(|(k, w)| {
             let s = (k as f64 * dt).min(ttc);
             let e = world.ego_kin(w.t);
-            center_ttc(e.p, e.v, DVec2::new(w.x, w.y), q.velocity(s))
+            center_ttc(e.p, e.v, DVec2::new(w.x, w.y), motion.velocity(s))
         })
         .fold(f64::INFINITY, f64::min);
     Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest })
+}
+
+/// The adversary's motion from t0: a per-axis quintic, or path-then-speed from rest.
+enum Motion {
+    Quintic(Quintic),
+    FromRest(FromRest),
+}
+
+impl Motion {
+    fn waypoints(&self, t0: f64, dt: f64) -> Vec<Waypoint> {
+        match self {
+            Motion::Quintic(q) => q.waypoints(t0, dt),
+            Motion::FromRest(m) => m.waypoints(t0, dt),
+        }
+    }
+
+    fn velocity(&self, s: f64) -> DVec2 {
+        match self {
+            Motion::Quintic(q) => q.velocity(s),
+            Motion::FromRest(m) => m.velocity(s),
+        }
+    }
 }
 
 /// TTC values the search tries for a behaviour within the log's horizon.

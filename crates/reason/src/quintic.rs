@@ -93,7 +93,8 @@ pub fn limits(w: &[Waypoint]) -> Limits {
 
 /// Whether a car could follow waypoints: it never moves backwards relative to `heading0` (its
 /// body heading at the start), and its yaw rate and path curvature (from the direction of
-/// successive finite-difference velocities, where speed > 1 m/s) stay within bounds.
+/// successive finite-difference velocities, where speed > 1 m/s, and from the geometry of the
+/// path at any speed: [`path_curvature`]) stay within bounds.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Trackability {
     pub backward: bool,
@@ -131,7 +132,43 @@ pub fn trackability(w: &[Waypoint], heading0: f64) -> Trackability {
             }
         }
     }
+    let starts_at_rest = v.first().is_some_and(|(v, _)| v.length() < 1.0);
+    let curv = curv.max(path_curvature(w, starts_at_rest.then_some(heading0)));
     Trackability { backward, max_yaw_rate: yaw, max_curvature: curv, max_curvature_rate: curv_rate }
+}
+
+/// Shortest chord between the points where [`path_curvature`] measures headings (m).
+pub const CURVATURE_STEP_M: f64 = 0.5;
+
+/// Largest geometric curvature (1/m) of the waypoints, at any speed: from the first waypoint,
+/// the next one at least [`CURVATURE_STEP_M`] away is kept, and so on; the heading change between
+/// successive chords divided by their mean length is the discrete curvature (exact for points
+/// on a circle). Slow stretches, which the velocity-based measure skips, are where a path can
+/// turn on the spot; no car can. With `start_heading` (a car at rest: its body heading) the first
+/// chord is also compared with it over half its length, so a path that leaves sideways shows as
+/// a sharp curvature.
+pub fn path_curvature(w: &[Waypoint], start_heading: Option<f64>) -> f64 {
+    let wrap = |a: f64| a.sin().atan2(a.cos());
+    let mut chords: Vec<DVec2> = Vec::new();
+    let mut anchor = match w.first() {
+        Some(p) => DVec2::new(p.x, p.y),
+        None => return 0.0,
+    };
+    for p in w.iter().skip(1) {
+        let p = DVec2::new(p.x, p.y);
+        if anchor.distance(p) >= CURVATURE_STEP_M {
+            chords.push(p - anchor);
+            anchor = p;
+        }
+    }
+    let mut k = chords
+        .windows(2)
+        .map(|c| wrap(c[1].to_angle() - c[0].to_angle()).abs() / (0.5 * (c[0].length() + c[1].length())))
+        .fold(0.0, f64::max);
+    if let (Some(h0), Some(first)) = (start_heading, chords.first()) {
+        k = k.max(wrap(first.to_angle() - h0).abs() / (0.5 * first.length()));
+    }
+    k
 }
 
 #[cfg(test)]
@@ -171,6 +208,33 @@ mod tests {
         assert!(!t.backward && (t.max_yaw_rate - 0.5).abs() < 1e-3 && (t.max_curvature - 0.05).abs() < 1e-3, "{t:?}");
         // The same path against a body facing the other way is backwards.
         assert!(trackability(&w, std::f64::consts::PI).backward);
+    }
+
+    #[test]
+    fn path_curvature_at_walking_pace_and_from_rest() {
+        // 0.5 m/s on a 4 m radius: the velocity measure skips it (speed < 1 m/s), geometry does not.
+        let w: Vec<Waypoint> = (0..=200)
+            .map(|k| {
+                let a = 0.125 * k as f64 * 0.1;
+                Waypoint { t: k as f64 * 0.1, x: 4.0 * a.sin(), y: 4.0 * (1.0 - a.cos()) }
+            })
+            .collect();
+        assert!((path_curvature(&w, None) - 0.25).abs() < 0.01, "{}", path_curvature(&w, None));
+        assert!(trackability(&w, 0.0).max_curvature > 0.24);
+        // A straight path that leaves 35 degrees off the body of a car at rest turns on the spot.
+        let dir = DVec2::from_angle(35f64.to_radians());
+        let straight: Vec<Waypoint> = (0..=30)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let p = dir * (0.5 * 2.0 * t * t);
+                Waypoint { t, x: p.x, y: p.y }
+            })
+            .collect();
+        assert!(path_curvature(&straight, None) < 1e-9);
+        // The first kept point is the first at least 0.5 m out: 0.64 m (t = 0.8 s).
+        let k = path_curvature(&straight, Some(0.0));
+        assert!((k - 35f64.to_radians() / 0.32).abs() < 1e-9, "{k}");
+        assert!((trackability(&straight, 0.0).max_curvature - k).abs() < 1e-12);
     }
 
     #[test]
