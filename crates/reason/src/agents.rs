@@ -40,6 +40,9 @@ pub fn best_candidate(world: &World, o: &ReasonOptions) -> Result<Candidate, Str
 pub fn describe_candidate(world: &World, c: &Candidate) -> String {
     let v = world.vehicle(&c.vehicle_id).expect("candidate vehicles are in the world");
     let l = world.to_ego_now(v.now.p);
+    let contact = c.predicted_contact_with.as_ref().map_or(String::new(), |(id, t)| {
+        format!("; no clear path: its path touches logged actor {id} at t0 + {:.1} s first", t - world.t0)
+    });
     format!(
         "vehicle {} is {:.1} m {} and {:.1} m {} of the ego at {:.1} m/s; {} brings it into the {} zone at t0 + {:.1} s with a predicted centre MinTTC of {:.2} s",
         c.vehicle_id,
@@ -52,7 +55,7 @@ pub fn describe_candidate(world: &World, c: &Candidate) -> String {
         c.zone.as_str(),
         c.ttc_s,
         c.predicted_min_ttc
-    )
+    ) + &contact
 }
 
 fn decision_of(world: &World, c: &Candidate) -> ZoneDecision {

@@ -7,6 +7,7 @@ pub mod agents;
 pub mod backend;
 pub mod baselines;
 pub mod behavior;
+pub mod clearance;
 pub mod from_rest;
 pub mod planner;
 pub mod prompt;

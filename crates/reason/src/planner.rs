@@ -16,10 +16,12 @@
 //! candidate is measured the way the metrics will measure its execution: the predicted centre
 //! MinTTC and whether, at the closest approach to the ego, it is inside the target zone. Score
 //! ([`score`]): predicted MinTTC >= 1 s ranks last, then lower MinTTC, then 0.02 per m/s^2 of
-//! peak acceleration (smoother). Candidates whose closest approach falls outside the target zone
-//! do not realize the behaviour and are dropped.
+//! peak acceleration (smoother); a path that touches a logged bystander before the ego
+//! ([`crate::clearance`]) ranks after every clear one. Candidates whose closest approach falls
+//! outside the target zone do not realize the behaviour and are dropped.
 
 use crate::behavior::{candidate_zones, spec, EndPolicy};
+use crate::clearance::Bystanders;
 use crate::from_rest::FromRest;
 use crate::quintic::{limits, trackability, End, Quintic};
 use crate::target::sample_target;
@@ -57,6 +59,8 @@ pub struct Planned {
     pub peak_accel: f64,
     /// Adversary centre in the ego frame at the instant of minimum centre distance.
     pub closest_local: DVec2,
+    /// The first logged actor other than the ego the path touches (id, time), if any.
+    pub contact_with: Option<(String, f64)>,
 }
 
 #[derive(Clone, Debug)]
@@ -71,8 +75,14 @@ pub struct Candidate {
     /// At the predicted closest approach the adversary is in the target zone.
     pub predicted_zone_hit: bool,
     pub peak_accel: f64,
+    /// Predicted first contact with a logged actor other than the ego (id, time): ranked after
+    /// every clear candidate ([`CONTACT_PENALTY`]).
+    pub predicted_contact_with: Option<(String, f64)>,
     pub score: f64,
 }
+
+/// Score added to a candidate whose path touches a bystander first (after zone misses).
+pub const CONTACT_PENALTY: f64 = 20.0;
 
 /// Lower is better: predicted misses of the zone and of TTC < 1 s rank after every hit, then the
 /// predicted MinTTC, then peak acceleration.
@@ -186,7 +196,9 @@ pub fn trajectory_to_aim(
             center_ttc(e.p, e.v, DVec2::new(w.x, w.y), motion.velocity(s))
         })
         .fold(f64::INFINITY, f64::min);
-    Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest })
+    let contact_with =
+        Bystanders::near(world.scene, &v.id, &waypoints).first_contact(&waypoints, v.now.heading, v.length, v.width);
+    Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest, contact_with })
 }
 
 /// The adversary's motion from t0: a per-axis quintic, or path-then-speed from rest.
@@ -283,11 +295,13 @@ pub fn search_vehicle_zone(
                     zone,
                     ttc_s: ttc,
                     target,
-                    score: score(p.min_ttc, p.peak_accel, hit),
+                    score: score(p.min_ttc, p.peak_accel, hit)
+                        + if p.contact_with.is_some() { CONTACT_PENALTY } else { 0.0 },
                     waypoints: p.waypoints,
                     predicted_min_ttc: p.min_ttc,
                     predicted_zone_hit: hit,
                     peak_accel: p.peak_accel,
+                    predicted_contact_with: p.contact_with,
                 });
             }
         }
