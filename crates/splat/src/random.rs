@@ -52,3 +52,48 @@ pub fn random_gaussians(n: usize, cam: &Camera, degree: usize, seed: u64) -> Gau
     }
     g
 }
+
+/// Writes `g` as raw little-endian f32 rows for tools outside Rust (the gsplat side-by-side in
+/// `tools/bench/`): per Gaussian `mean (3), log_scale (3), rotation wxyz (4), opacity logit (1),
+/// sh (coeffs x 3, coefficient-major, RGB interleaved)`. Written to a temp file and renamed.
+pub fn write_f32_rows(path: &std::path::Path, g: &Gaussians) -> std::io::Result<()> {
+    let mut bytes = Vec::with_capacity(g.len() * (11 + g.coeffs() * 3) * 4);
+    for i in 0..g.len() {
+        let row = g.means[i]
+            .iter()
+            .chain(&g.log_scales[i])
+            .chain(&g.rotations[i])
+            .chain(std::iter::once(&g.opacity_logits[i]))
+            .chain(g.sh_of(i));
+        for v in row {
+            bytes.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+    }
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, &bytes)?;
+    std::fs::rename(&tmp, path)
+}
+
+#[cfg(test)]
+mod dump_tests {
+    use super::*;
+
+    #[test]
+    fn rows_hold_every_parameter_in_order() {
+        let cam = Camera::at_origin(64, 48, 50.0);
+        let g = random_gaussians(3, &cam, 1, 5);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.f32");
+        write_f32_rows(&path, &g).unwrap();
+        let f: Vec<f32> =
+            std::fs::read(&path).unwrap().chunks(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let row = 11 + 4 * 3;
+        assert_eq!(f.len(), 3 * row);
+        let r2 = &f[2 * row..];
+        assert_eq!(r2[0], g.means[2][0] as f32);
+        assert_eq!(r2[5], g.log_scales[2][2] as f32);
+        assert_eq!(r2[6], g.rotations[2][0] as f32);
+        assert_eq!(r2[10], g.opacity_logits[2] as f32);
+        assert_eq!(r2[11 + 3 * 3 + 2], g.sh_of(2)[11] as f32);
+    }
+}

@@ -77,6 +77,10 @@ pub struct BenchArgs {
     /// Timed iterations on the GPU (after 3 warm-up ones).
     #[arg(long, default_value_t = 50)]
     gpu_iters: usize,
+    /// Also write each case's Gaussians (`gaussians-NxWxH.f32`, see `splat::random::write_f32_rows`)
+    /// and, with cuda, its forward RGB (`rgb-NxWxH.f32`, H x W x 3) here, for `tools/bench/`.
+    #[arg(long)]
+    dump_dir: Option<PathBuf>,
     #[arg(long)]
     out: PathBuf,
 }
@@ -96,6 +100,7 @@ fn bench_cuda(
     cam: &splat::Camera,
     up: &Upstream,
     iters: usize,
+    rgb_dump: Option<PathBuf>,
 ) -> anyhow::Result<serde_json::Value> {
     let opts = RenderOptions::default();
     let mut sess = splat_cuda::Session::default();
@@ -121,6 +126,13 @@ fn bench_cuda(
     gpu.render(g, cam, &Features::default(), &opts, &mut sess, &mut img)?;
     gpu.backward_into(g, &mut sess, up, &mut grads)?;
     let boundary = t.elapsed().as_secs_f64();
+    if let Some(path) = rgb_dump {
+        let bytes: Vec<u8> = img.rgb.iter().flatten().flat_map(|v| (*v as f32).to_le_bytes()).collect();
+        let tmp = path.with_extension("tmp");
+        std::fs::write(&tmp, bytes)
+            .and_then(|_| std::fs::rename(&tmp, &path))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
     Ok(
         serde_json::json!({"device": gpu.describe(), "forward_s": median(&mut fwd), "forward_backward_s": median(&mut both),
         "iters": iters, "intersections": sess.intersections(), "with_f64_host_boundary_s": boundary}),
@@ -140,7 +152,7 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         None
     };
     anyhow::ensure!(a.gpu_iters > 0, "--gpu-iters must be positive");
-    for case in a.cases.split(',') {
+    for case in a.cases.split(',').map(str::trim) {
         let v: Vec<usize> = case
             .split('x')
             .map(|s| s.trim().parse())
@@ -153,13 +165,19 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         let (ones, zeros, zeros3) = (vec![[1.0; 3]; n_px], vec![0.0; n_px], vec![[0.0; 3]; n_px]);
         let up = Upstream { rgb: &ones, alpha: &zeros, depth: &zeros, normal: &zeros3, features: &[] };
         let g = splat::random::random_gaussians(n, &cam, 3, 7);
+        if let Some(dir) = &a.dump_dir {
+            std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+            let path = dir.join(format!("gaussians-{case}.f32"));
+            splat::random::write_f32_rows(&path, &g).with_context(|| format!("{}: cannot write", path.display()))?;
+        }
         let opts = RenderOptions::default();
         let (mut fwd, mut both) = (Vec::new(), Vec::new());
         // Like a training loop: the image, context and gradients keep their memory between
         // iterations; upstream gradients d loss / d rgb = 1.
         let mut row = serde_json::json!({"gaussians": n, "width": w, "height": h});
         if let Some(gpu) = &gpu {
-            let r = bench_cuda(gpu, &g, &cam, &up, a.gpu_iters)?;
+            let rgb_dump = a.dump_dir.as_ref().map(|d| d.join(format!("rgb-{case}.f32")));
+            let r = bench_cuda(gpu, &g, &cam, &up, a.gpu_iters, rgb_dump)?;
             println!(
                 "{n} Gaussians at {w}x{h} on {}: forward {:.3} ms, forward+backward {:.3} ms",
                 gpu.describe(),
