@@ -29,7 +29,8 @@ need() { # need <package> <test command...>
 }
 need cmake command -v cmake
 need build-essential command -v c++
-need libclang-dev sh -c 'ls /usr/lib/llvm-*/lib/libclang.so* || ls /usr/lib/*/libclang*.so*'
+# bindgen loads libclang itself (libclang.so / libclang-<version>.so); libclang-cpp does not count.
+need libclang-dev sh -c 'ls /usr/lib/llvm-*/lib/libclang.so* || ls /usr/lib/*/libclang.so* || ls /usr/lib/*/libclang-[0-9]*.so*'
 need ffmpeg command -v ffmpeg
 need libxml2-utils command -v xmllint
 need chromium sh -c 'command -v chromium || command -v chromium-browser'
