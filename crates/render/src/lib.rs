@@ -6,6 +6,7 @@
 //! measures where the adversary was drawn against where its box says it is, so every video can
 //! carry a check of its own geometry. See docs/render.md.
 
+pub mod asset;
 pub mod backproject;
 pub mod bev;
 pub mod canvas;

@@ -1,0 +1,148 @@
+//! Replacing an actor of a trained model with an aligned asset, in memory and as a new model
+//! directory (`carla-gs replace`, `--replace` of `run` and `demo`).
+//!
+//! The actor's frame is its tracked box (centre at the origin, yaw 0, extents = the box size);
+//! its points are the means of its Gaussians that are not nearly transparent, or, for an actor
+//! with almost none (never well seen), points on its box's faces, where the Chamfer term cannot
+//! tell front from back and the tie goes to `d`. The asset is moved by the chosen alignment
+//! (`covariance::transform`), its SH degree made the model's, and it takes the actor's place;
+//! the box size, track and everything else stay. The output directory gets every model file
+//! (no `checkpoint.bin`: the training state no longer matches) and `replacements.json`, the
+//! alignment report of each replacement (all four candidates with both terms).
+
+use super::align::{align, AlignOptions, Alignment, Frame};
+use super::covariance::{transform, with_sh_degree};
+use super::library::geometry_points;
+use crate::RenderError;
+use recon::SceneModel;
+use serde::{Deserialize, Serialize};
+use splat::Gaussians;
+use std::path::Path;
+
+pub const REPLACEMENTS_FILE: &str = "replacements.json";
+/// Fewer geometry points than this: the box's faces stand in for the actor.
+pub const MIN_ACTOR_POINTS: usize = 20;
+
+/// What one replacement did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Replacement {
+    pub track_id: String,
+    /// The asset's name or file.
+    pub asset: String,
+    pub gaussians_before: usize,
+    pub gaussians_after: usize,
+    /// Whether the actor's own Gaussians were too few and the box's faces were used.
+    pub box_points: bool,
+    pub alignment: Alignment,
+}
+
+/// Points on the faces of a box of `size` centred at the origin, about 0.1 m apart.
+fn box_points(size: [f64; 3]) -> Vec<[f64; 3]> {
+    let n: [usize; 3] = std::array::from_fn(|k| (size[k] / 0.1).ceil().clamp(1.0, 200.0) as usize);
+    let at = |k: usize, i: usize| size[k] * (i as f64 / n[k] as f64 - 0.5);
+    let mut out = Vec::new();
+    for ax in 0..3 {
+        let (u, v) = ((ax + 1) % 3, (ax + 2) % 3);
+        for side in [-0.5, 0.5] {
+            for i in 0..=n[u] {
+                for j in 0..=n[v] {
+                    let mut p = [0.0; 3];
+                    p[ax] = side * size[ax];
+                    p[u] = at(u, i);
+                    p[v] = at(v, j);
+                    out.push(p);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Replaces actor `track` of `model` with `asset` (z up, any frame), aligned to it.
+pub fn replace_actor(
+    model: &mut SceneModel,
+    track: &str,
+    asset_name: &str,
+    asset: &Gaussians,
+    opts: &AlignOptions,
+) -> Result<Replacement, RenderError> {
+    let degree = model.background.sh_degree;
+    let available = || model.actors.iter().map(|a| a.track_id.as_str()).collect::<Vec<_>>().join(", ");
+    let Some(idx) = model.actors.iter().position(|a| a.track_id == track) else {
+        return Err(RenderError::NoActorModel { track: track.to_string(), available: available() });
+    };
+    let actor = &model.actors[idx];
+    let size = actor.size_lwh;
+    if size.iter().any(|v| !(*v > 0.0 && v.is_finite())) {
+        return Err(RenderError::Settings {
+            what: format!("actor `{track}`"),
+            detail: format!("box size {size:?} is not positive: nothing to align to"),
+        });
+    }
+    let mut points = geometry_points(&actor.gaussians);
+    let use_box = points.len() < MIN_ACTOR_POINTS;
+    if use_box {
+        points = box_points(size);
+    }
+    let frame = Frame { centre: [0.0; 3], yaw: 0.0, extents: size };
+    let a = align(&geometry_points(asset), &points, Some(frame), opts).map_err(|e| RenderError::Settings {
+        what: format!("aligning asset `{asset_name}` to actor `{track}`"),
+        detail: e.to_string(),
+    })?;
+    let moved = transform(asset, &a.linear, a.translation, &a.rotation);
+    let moved = with_sh_degree(&moved, degree);
+    let before = model.actors[idx].gaussians.len();
+    model.actors[idx].gaussians = moved;
+    Ok(Replacement {
+        track_id: track.to_string(),
+        asset: asset_name.to_string(),
+        gaussians_before: before,
+        gaussians_after: asset.len(),
+        box_points: use_box,
+        alignment: a,
+    })
+}
+
+/// Loads the model in `model_dir`, applies every `(track, asset name, asset)` replacement and
+/// writes the result to `out_dir` (which must not be `model_dir`).
+pub fn replace_in_dir(
+    model_dir: &Path,
+    out_dir: &Path,
+    replacements: &[(String, String, Gaussians)],
+    opts: &AlignOptions,
+) -> Result<Vec<Replacement>, RenderError> {
+    let same = match (model_dir.canonicalize(), out_dir.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(RenderError::Settings {
+            what: format!("--out {}", out_dir.display()),
+            detail: "is the input model directory; write the replaced model elsewhere".into(),
+        });
+    }
+    let (mut model, mut record) = recon::model_io::load_model(model_dir)?;
+    let cfg = recon::model_io::load_config(model_dir)?;
+    let mut done = Vec::with_capacity(replacements.len());
+    for (track, name, g) in replacements {
+        done.push(replace_actor(&mut model, track, name, g, opts)?);
+    }
+    recon::model_io::write_model(out_dir, &model, &mut record, &cfg, None)?;
+    scene::format::write_json_pretty(&out_dir.join(REPLACEMENTS_FILE), &done)?;
+    Ok(done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_points_span_the_box() {
+        let p = box_points([4.0, 2.0, 1.5]);
+        let f = super::super::align::frame_of(&p).unwrap();
+        for (a, b) in f.extents.iter().zip([4.0, 2.0, 1.5]) {
+            assert!((a - b).abs() < 1e-9);
+        }
+        assert!(f.centre.iter().all(|c| c.abs() < 1e-9));
+    }
+}
