@@ -54,6 +54,10 @@ enum Command {
     Demo(cmd::demo::Args),
     /// Render an executed corner case as video (one layout).
     Video(cmd::run::VideoCmdArgs),
+    /// Add a Gaussian asset (a 3DGS PLY, a trained actor, a synthetic vehicle) to an asset library.
+    Asset(cmd::asset::AssetArgs),
+    /// Replace an actor of a trained model with an aligned Gaussian asset (writes a new model).
+    Replace(cmd::asset::ReplaceArgs),
 }
 
 fn main() -> ExitCode {
@@ -87,6 +91,8 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd::run::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Video(a) => cmd::run::video(a),
+        Command::Asset(a) => cmd::asset::add(a),
+        Command::Replace(a) => cmd::asset::replace(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -7,7 +7,9 @@ pub mod case;
 pub mod demo;
 pub mod error;
 pub mod outputs;
+pub mod replace_check;
 pub mod report;
 pub mod run;
+pub mod synth_asset;
 
 pub use error::PipelineError;

@@ -1,4 +1,5 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
+pub mod asset;
 pub mod backend;
 pub mod demo;
 pub mod eval_cases;

@@ -226,6 +226,42 @@ impl Library {
     }
 }
 
+/// What `--asset` / `--replace <track>=<spec>` can name.
+pub const AUTO: &str = "auto";
+
+/// The asset `spec` names, with a name for reports: `auto` (the library's nearest-sized asset
+/// of `class`), a `.ply` file (turned from its declared `up` axis) or an asset of the library.
+pub fn resolve(
+    spec: &str,
+    library_dir: &Path,
+    up: UpAxis,
+    class: ObjectClass,
+    size_lwh: [f64; 3],
+) -> Result<(String, Gaussians), RenderError> {
+    if spec == AUTO {
+        let lib = Library::load(library_dir)?;
+        let entry = lib.nearest(class, size_lwh).ok_or_else(|| RenderError::Settings {
+            what: format!("asset `auto` for a {} of size {size_lwh:?}", class.as_str()),
+            detail: format!("the library {} has no asset of that class", library_dir.join(INDEX_FILE).display()),
+        })?;
+        return Ok((entry.name.clone(), lib.read(library_dir, entry)?));
+    }
+    let path = Path::new(spec);
+    if spec.to_ascii_lowercase().ends_with(".ply") || path.is_file() {
+        return Ok((spec.to_string(), read_asset_ply(path, up)?));
+    }
+    let lib = Library::load(library_dir)?;
+    let entry = lib.get(spec).ok_or_else(|| RenderError::Settings {
+        what: format!("asset `{spec}`"),
+        detail: format!(
+            "is neither a .ply file nor an asset of {} (assets: {})",
+            library_dir.join(INDEX_FILE).display(),
+            lib.assets.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(", ")
+        ),
+    })?;
+    Ok((entry.name.clone(), lib.read(library_dir, entry)?))
+}
+
 /// The Gaussians of actor `track` of the model in `model_dir` (its box frame: x forward, z up),
 /// with its box size. Nearly transparent Gaussians are left out.
 pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 3]), RenderError> {

@@ -12,9 +12,10 @@
 
 use super::align::{align, AlignOptions, Alignment, Frame};
 use super::covariance::{transform, with_sh_degree};
-use super::library::geometry_points;
+use super::library::{geometry_points, resolve, UpAxis, AUTO};
 use crate::RenderError;
 use recon::SceneModel;
+use scene::ObjectClass;
 use serde::{Deserialize, Serialize};
 use splat::Gaussians;
 use std::path::Path;
@@ -103,12 +104,15 @@ pub fn replace_actor(
     })
 }
 
-/// Loads the model in `model_dir`, applies every `(track, asset name, asset)` replacement and
-/// writes the result to `out_dir` (which must not be `model_dir`).
+/// Loads the model in `model_dir`, replaces each `(track, asset spec)` (`library::resolve`:
+/// `auto`, a PLY file or a library name) and writes the result to `out_dir` (not `model_dir`).
+/// The track's class (for `auto`) comes from the scene the model was trained on.
 pub fn replace_in_dir(
     model_dir: &Path,
     out_dir: &Path,
-    replacements: &[(String, String, Gaussians)],
+    replacements: &[(String, String)],
+    library_dir: &Path,
+    up: UpAxis,
     opts: &AlignOptions,
 ) -> Result<Vec<Replacement>, RenderError> {
     let same = match (model_dir.canonicalize(), out_dir.canonicalize()) {
@@ -124,8 +128,16 @@ pub fn replace_in_dir(
     let (mut model, mut record) = recon::model_io::load_model(model_dir)?;
     let cfg = recon::model_io::load_config(model_dir)?;
     let mut done = Vec::with_capacity(replacements.len());
-    for (track, name, g) in replacements {
-        done.push(replace_actor(&mut model, track, name, g, opts)?);
+    for (track, spec) in replacements {
+        let class = if spec == AUTO {
+            let sc = scene::load_scene(&record.scene_dir)?;
+            sc.track(track).map_or(ObjectClass::Vehicle, |t| t.class)
+        } else {
+            ObjectClass::Vehicle
+        };
+        let size = model.actors.iter().find(|a| &a.track_id == track).map_or([0.0; 3], |a| a.size_lwh);
+        let (name, g) = resolve(spec, library_dir, up, class, size)?;
+        done.push(replace_actor(&mut model, track, &name, &g, opts)?);
     }
     recon::model_io::write_model(out_dir, &model, &mut record, &cfg, None)?;
     scene::format::write_json_pretty(&out_dir.join(REPLACEMENTS_FILE), &done)?;
