@@ -77,6 +77,9 @@ pub struct DemoResult {
     pub cases: Vec<(Behavior, RunSummary)>,
     pub timings: Vec<StageTime>,
     pub total_seconds: f64,
+    /// One actor before and after vehicle replacement (`replace_showcase`).
+    #[serde(default)]
+    pub replacement: Option<crate::replace_showcase::Showcase>,
 }
 
 /// Reports what the demo is doing (a stage starting, a progress bar to show).
@@ -221,6 +224,29 @@ pub fn run_demo_on<B: Backend + Clone>(
         cases.push((behavior, scene::format::read_json(&case_dir.join("run.json"))?));
     }
 
+    // Vehicle replacement: the first case's adversary (the lead vehicle without a case).
+    let track = cases
+        .iter()
+        .find_map(|(_, s): &(Behavior, RunSummary)| {
+            s.result.as_ref().and_then(|r| r.best()).map(|c| c.plan.adversary_track.clone())
+        })
+        .unwrap_or_else(|| "lead-1".to_string());
+    let replace_dir = out.join("replacement");
+    let replace_key = json!({"model": train_key, "track": track, "version": 1});
+    let synth_cfg = synth::SynthConfig {
+        frames: cfg.frames,
+        cameras: cfg.cameras,
+        width: cfg.width,
+        height: cfg.height,
+        seed: cfg.scene_seed,
+        force: true,
+        preview: false,
+    };
+    stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
+        crate::replace_showcase::showcase(backend, &model, &scene, &synth_cfg, &track, &replace_dir).map(|_| ())
+    })?;
+    let replacement = scene::format::read_json(&replace_dir.join(crate::replace_showcase::SHOWCASE_FILE)).ok();
+
     let mut result = DemoResult {
         config: cfg.clone(),
         out: out.to_path_buf(),
@@ -229,6 +255,7 @@ pub fn run_demo_on<B: Backend + Clone>(
         cases,
         timings: stages.timings,
         total_seconds: 0.0,
+        replacement,
     };
     let clock_report = Instant::now();
     progress.stage("report");

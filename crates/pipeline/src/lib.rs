@@ -8,6 +8,7 @@ pub mod demo;
 pub mod error;
 pub mod outputs;
 pub mod replace_check;
+pub mod replace_showcase;
 pub mod report;
 pub mod run;
 pub mod synth_asset;

@@ -155,3 +155,47 @@ pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
     println!("-> {}", a.out.display());
     Ok(())
 }
+
+/// `--replace <track>=<ply|name|auto>` for commands that draw a model (`run`).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct ReplaceFlags {
+    /// Replace an actor with an aligned asset before anything is drawn: <track>=<3DGS PLY file,
+    /// asset name of --asset-library, or auto (nearest-sized asset of the track's class)>.
+    /// Repeatable.
+    #[arg(long = "replace")]
+    pub replace: Vec<String>,
+    /// The asset library --replace reads.
+    #[arg(long, default_value = "assets")]
+    pub asset_library: PathBuf,
+    /// Chamfer weight of the alignment.
+    #[arg(long, default_value_t = 1.0)]
+    pub replace_lambda: f64,
+}
+
+impl ReplaceFlags {
+    /// Applies the replacements to `model` (trained on the scene in `scene_dir`) and prints the
+    /// alignment chosen for each.
+    pub fn apply(&self, model: &mut recon::SceneModel, scene_dir: &std::path::Path) -> anyhow::Result<()> {
+        if self.replace.is_empty() {
+            return Ok(());
+        }
+        let pairs =
+            self.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
+        let opts = AlignOptions { lambda: self.replace_lambda, isotropic: false };
+        let done =
+            render::asset::replace::replace_specs(model, scene_dir, &pairs, &self.asset_library, UpAxis::Z, &opts)?;
+        for r in done {
+            let c = r.alignment.chosen();
+            println!(
+                "replaced `{}` with `{}`: candidate {} (yaw {:.1} deg, extent error {:.3} m, Chamfer {:.3} m)",
+                r.track_id,
+                r.asset,
+                c.name,
+                c.yaw.to_degrees(),
+                c.extent_error_m,
+                c.chamfer_m
+            );
+        }
+        Ok(())
+    }
+}

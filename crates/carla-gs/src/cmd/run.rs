@@ -81,11 +81,14 @@ pub struct RunArgs {
     llm: super::llm::LlmArgs,
     #[command(flatten)]
     physics: super::backend::BackendArgs,
+    #[command(flatten)]
+    replace: super::asset::ReplaceFlags,
 }
 
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let scene = scene::load_scene(&a.scene)?;
-    let (model, _) = recon::model_io::load_model(&a.model)?;
+    let (mut model, _) = recon::model_io::load_model(&a.model)?;
+    a.replace.apply(&mut model, &a.scene)?;
     let agent: AgentName = a.agent.parse().map_err(anyhow::Error::msg)?;
     let behavior = a.behavior.parse().map_err(|e: String| anyhow::anyhow!("--behavior: {e}"))?;
     let req = CaseRequest {

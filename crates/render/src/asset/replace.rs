@@ -104,6 +104,42 @@ pub fn replace_actor(
     })
 }
 
+/// Parses `--replace <track>=<spec>` (spec: `auto`, a PLY file or a library name).
+pub fn parse_replace_arg(arg: &str) -> Result<(String, String), RenderError> {
+    match arg.split_once('=') {
+        Some((t, s)) if !t.is_empty() && !s.is_empty() => Ok((t.to_string(), s.to_string())),
+        _ => Err(RenderError::Settings {
+            what: format!("--replace `{arg}`"),
+            detail: "expected <track>=<ply file|asset name|auto>".into(),
+        }),
+    }
+}
+
+/// Replaces each `(track, asset spec)` of `model` in memory (`library::resolve`); the track's
+/// class (for `auto`) comes from the scene in `scene_dir`.
+pub fn replace_specs(
+    model: &mut SceneModel,
+    scene_dir: &Path,
+    replacements: &[(String, String)],
+    library_dir: &Path,
+    up: UpAxis,
+    opts: &AlignOptions,
+) -> Result<Vec<Replacement>, RenderError> {
+    let mut done = Vec::with_capacity(replacements.len());
+    for (track, spec) in replacements {
+        let class = if spec == AUTO {
+            let sc = scene::load_scene(scene_dir)?;
+            sc.track(track).map_or(ObjectClass::Vehicle, |t| t.class)
+        } else {
+            ObjectClass::Vehicle
+        };
+        let size = model.actors.iter().find(|a| &a.track_id == track).map_or([0.0; 3], |a| a.size_lwh);
+        let (name, g) = resolve(spec, library_dir, up, class, size)?;
+        done.push(replace_actor(model, track, &name, &g, opts)?);
+    }
+    Ok(done)
+}
+
 /// Loads the model in `model_dir`, replaces each `(track, asset spec)` (`library::resolve`:
 /// `auto`, a PLY file or a library name) and writes the result to `out_dir` (not `model_dir`).
 /// The track's class (for `auto`) comes from the scene the model was trained on.
@@ -127,18 +163,8 @@ pub fn replace_in_dir(
     }
     let (mut model, mut record) = recon::model_io::load_model(model_dir)?;
     let cfg = recon::model_io::load_config(model_dir)?;
-    let mut done = Vec::with_capacity(replacements.len());
-    for (track, spec) in replacements {
-        let class = if spec == AUTO {
-            let sc = scene::load_scene(&record.scene_dir)?;
-            sc.track(track).map_or(ObjectClass::Vehicle, |t| t.class)
-        } else {
-            ObjectClass::Vehicle
-        };
-        let size = model.actors.iter().find(|a| &a.track_id == track).map_or([0.0; 3], |a| a.size_lwh);
-        let (name, g) = resolve(spec, library_dir, up, class, size)?;
-        done.push(replace_actor(&mut model, track, &name, &g, opts)?);
-    }
+    let scene_dir = record.scene_dir.clone();
+    let done = replace_specs(&mut model, &scene_dir, replacements, library_dir, up, opts)?;
     recon::model_io::write_model(out_dir, &model, &mut record, &cfg, None)?;
     scene::format::write_json_pretty(&out_dir.join(REPLACEMENTS_FILE), &done)?;
     Ok(done)
