@@ -54,6 +54,10 @@ fn demo_report_loads_in_a_browser_and_the_second_run_is_cached() {
     assert!(first.timings.iter().filter(|t| t.stage != "report").all(|t| !t.cached), "{:?}", first.timings);
     assert_eq!(first.cases.len(), 3, "one entry per showcased behaviour, case or not");
     assert!(first.cases.iter().any(|(_, s)| s.result.is_some()), "at least one behaviour has a case");
+    let rep = first.replacement.as_ref().expect("the vehicle replacement case");
+    println!("replacement of {}: before {:?}, after {:?}", rep.track_id, rep.before, rep.after);
+    assert!(rep.after.iou > rep.before.iou, "replaced actor covers the vehicle better: {rep:?}");
+    assert!(std::fs::read_to_string(out.join("report.html")).unwrap().contains("Vehicle replacement"));
     let second = run_demo(&cfg, &out, &Quiet).expect("second demo");
     let rebuilt: Vec<_> = second.timings.iter().filter(|t| t.stage != "report" && !t.cached).collect();
     assert!(rebuilt.is_empty(), "the second run rebuilt {rebuilt:?}");
