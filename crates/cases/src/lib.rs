@@ -114,8 +114,7 @@ pub fn run_eval(
     progress: &ProgressBar,
 ) -> Result<Report, EvalError> {
     let attempts = attempts(scenes, &cfg.behaviors, &cfg.t0, cfg.seed);
-    let all: Vec<CaseSpec> =
-        attempts.iter().flat_map(|a| cfg.agents.iter().map(|g| a.for_agent(*g))).collect();
+    let all: Vec<CaseSpec> = attempts.iter().flat_map(|a| cfg.agents.iter().map(|g| a.for_agent(*g))).collect();
     progress.set_length(all.len() as u64);
     let case_dir = cfg.out.join("cases");
     let mut results: Vec<(usize, CaseResult)> = Vec::new();

@@ -67,8 +67,9 @@ pub fn common_attempts(results: &[CaseResult], agents: &[AgentName]) -> BTreeSet
 
 pub fn table1_paired(results: &[CaseResult], agents: &[AgentName]) -> Vec<PairedRow> {
     let common = common_attempts(results, agents);
-    // Per row: attempt id -> the measured round.
-    let mut rows: Vec<(AgentName, &str, Vec<(String, &Round)>)> = Vec::new();
+    // Per row: (attempt id, the measured round).
+    type Measured<'a> = Vec<(String, &'a Round)>;
+    let mut rows: Vec<(AgentName, &str, Measured)> = Vec::new();
     for a in agents {
         let mine: Vec<&CaseResult> =
             results.iter().filter(|r| r.spec.agent == *a && common.contains(&r.spec.attempt_id())).collect();
@@ -133,7 +134,8 @@ pub fn paired_markdown(rows: &[PairedRow]) -> String {
 pub fn paired_csv(rows: &[PairedRow]) -> String {
     let mut s = String::from("agent,variant,attempts,zone_hit_k,success_k,verified_k,min_ttc_center_mean,min_ttc_center_std,only_this,only_reference,p_value\n");
     for r in rows {
-        let (m, sd) = r.min_ttc_center_s.map_or((String::new(), String::new()), |s| (s.mean.to_string(), s.std.to_string()));
+        let (m, sd) =
+            r.min_ttc_center_s.map_or((String::new(), String::new()), |s| (s.mean.to_string(), s.std.to_string()));
         let _ = writeln!(
             s,
             "{},{},{},{},{},{},{m},{sd},{},{},{}",

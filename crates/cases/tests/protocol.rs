@@ -80,7 +80,11 @@ fn same_attempts_same_window_and_honest_baselines() {
             let [a, b] = round.metrics.interval_s;
             assert!((a - t0).abs() < 1e-6, "{}", c.spec.id());
             let ego_contact = round.metrics.first_contact.as_ref().is_some_and(|x| x.other == "ego");
-            assert!((b - end).abs() < 0.1 + 1e-6 || (ego_contact && b < end), "{}: window ends {b}, expected {end}", c.spec.id());
+            assert!(
+                (b - end).abs() < 0.1 + 1e-6 || (ego_contact && b < end),
+                "{}: window ends {b}, expected {end}",
+                c.spec.id()
+            );
             if !ego_contact {
                 windows.entry(c.spec.attempt_id()).or_default().push([a, b]);
             }
@@ -113,12 +117,8 @@ fn same_attempts_same_window_and_honest_baselines() {
     // the same seed gives the same zone at another t0 (another world, another end point).
     let scene = &scenes[1];
     let random = |t0: f64, seed: u64, b: Behavior| {
-        let o = ReasonOptions {
-            t0: scene.frames[0].timestamp_s + t0,
-            behavior: Some(b),
-            seed,
-            ..ReasonOptions::default()
-        };
+        let o =
+            ReasonOptions { t0: scene.frames[0].timestamp_s + t0, behavior: Some(b), seed, ..ReasonOptions::default() };
         match reason::reason(scene, &o, Agent::Random).unwrap() {
             Outcome::Plan { plan, .. } => plan,
             Outcome::NoFeasible { reason } => panic!("{reason}"),

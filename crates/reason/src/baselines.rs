@@ -71,9 +71,11 @@ fn decision(v: &Vehicle, zone: Zone, behavior: Behavior, ttc: f64, reasoning: St
 
 /// A rule manoeuvre in the ego's frame at t0: acceleration along the ego's heading (m/s^2, as a
 /// function of time) and the lateral offset (m, ego frame, y left) as a function of time.
+type Lateral = Box<dyn Fn(f64) -> f64>;
+
 struct Manoeuvre {
     accel: fn(f64) -> f64,
-    lateral: Box<dyn Fn(f64) -> f64>,
+    lateral: Lateral,
     what: String,
 }
 
@@ -84,9 +86,9 @@ fn ease(t: f64, span: f64) -> f64 {
 
 fn manoeuvre(b: Behavior, y0: f64, zone_y: f64) -> Manoeuvre {
     use Behavior::*;
-    let shift = move |to: f64, span: f64| -> Box<dyn Fn(f64) -> f64> { Box::new(move |t| y0 + (to - y0) * ease(t, span)) };
-    let hold: Box<dyn Fn(f64) -> f64> = Box::new(move |_| y0);
-    let (accel, lateral, what): (fn(f64) -> f64, Box<dyn Fn(f64) -> f64>, &str) = match b {
+    let shift = move |to: f64, span: f64| -> Lateral { Box::new(move |t| y0 + (to - y0) * ease(t, span)) };
+    let hold: Lateral = Box::new(move |_| y0);
+    let (accel, lateral, what): (fn(f64) -> f64, Lateral, &str) = match b {
         SuddenBraking => (|_| -3.0, hold, "brake at -3 m/s^2"),
         LeadSwerve => (
             |t| if t < 2.0 { 0.0 } else { -3.0 },
@@ -139,7 +141,9 @@ pub fn rule_based(world: &World, o: &ReasonOptions) -> Outcome {
     let Some((v, behavior, zone)) = chosen else {
         return Outcome::NoFeasible {
             reason: match o.behavior {
-                Some(b) => format!("no vehicle within range is positioned for {} ({})", b.as_str(), spec(b).description),
+                Some(b) => {
+                    format!("no vehicle within range is positioned for {} ({})", b.as_str(), spec(b).description)
+                }
                 None => "no vehicle within range is positioned for any behaviour".into(),
             },
         };
