@@ -1,13 +1,16 @@
-//! `cases`: the evaluation harness behind `carla-gs eval-cases`. For every scene x behaviour x
-//! analysis time x agent: reason -> simulate -> measure, with closed-loop refinement (`runner`);
-//! then the paper's Table I and Table II (`tables`) as Markdown, CSV and JSON, per-case files and
-//! plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
+//! `cases`: the evaluation harness behind `carla-gs eval-cases`. One list of attempts (scene x
+//! behaviour x analysis time, `spec`) is given to every agent: reason -> simulate -> measure over
+//! one window for all (`window`), with closed-loop refinement (`runner`); then the paper's Table I
+//! and Table II (`tables`), the paired comparison and the reasons for no plan (`paired`) as
+//! Markdown, CSV and JSON, per-case files and plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
 //! results do not depend on the thread count (every case has its own seed).
 
+pub mod paired;
 pub mod plots;
 pub mod runner;
 pub mod spec;
 pub mod tables;
+pub mod window;
 
 use indicatif::ProgressBar;
 use rayon::prelude::*;
@@ -15,7 +18,7 @@ use reason::backend::Backend;
 use runner::{run_case, CaseConfig, CaseResult, Status};
 use scene::{Behavior, Executed, Scene};
 use serde::{Deserialize, Serialize};
-use spec::{enumerate, AgentName, CaseSpec, T0Spec};
+use spec::{attempts, AgentName, CaseSpec, T0Spec};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -52,7 +55,15 @@ pub struct Report {
     pub scenes: Vec<String>,
     pub seed: u64,
     pub refine_rounds: usize,
+    /// The evaluation window (horizon, what the adversary does after its plan).
+    pub window: window::Window,
+    /// Attempts (scene, behaviour, t0) given to every agent.
+    pub attempts: usize,
     pub table1: Vec<tables::Table1Row>,
+    pub table1_paired: Vec<paired::PairedRow>,
+    /// Why attempts have no rollout: (class, count per agent in `agents` order).
+    pub why_no_plan: Vec<(String, Vec<usize>)>,
+    pub agents: Vec<AgentName>,
     pub table2: Vec<tables::Table2Row>,
     pub validity: Vec<tables::ValidityRow>,
     pub failures: Vec<Failure>,
@@ -102,7 +113,8 @@ pub fn run_eval(
     backends: &BackendFactory,
     progress: &ProgressBar,
 ) -> Result<Report, EvalError> {
-    let all = enumerate(scenes, &cfg.behaviors, &cfg.t0, &cfg.agents, cfg.seed);
+    let attempts = attempts(scenes, &cfg.behaviors, &cfg.t0, cfg.seed);
+    let all: Vec<CaseSpec> = attempts.iter().flat_map(|a| cfg.agents.iter().map(|g| a.for_agent(*g))).collect();
     progress.set_length(all.len() as u64);
     let case_dir = cfg.out.join("cases");
     let mut results: Vec<(usize, CaseResult)> = Vec::new();
@@ -152,7 +164,12 @@ pub fn run_eval(
         scenes: scenes.iter().map(|s| s.name.clone()).collect(),
         seed: cfg.seed,
         refine_rounds: cfg.case.refine_rounds,
+        window: cfg.case.window,
+        attempts: attempts.len(),
         table1: tables::table1(&cases, &cfg.agents),
+        table1_paired: paired::table1_paired(&cases, &cfg.agents),
+        why_no_plan: paired::why_no_plan(&cases, &cfg.agents),
+        agents: cfg.agents.clone(),
         table2: tables::table2(&cases, &cfg.agents),
         validity: tables::validity(&cases, &cfg.agents),
         failures,
@@ -166,14 +183,29 @@ pub fn run_eval(
 
 /// The summary in Markdown: tables, validity, refinement effect, failures, timing.
 pub fn summary_markdown(r: &Report) -> String {
+    let horizon = match r.window.horizon {
+        window::Horizon::Seconds(h) => format!(
+            "{h} s from t0 (clipped at the log's end; after its plan the adversary does `{}`; contact with the ego ends the window)",
+            match r.window.after_plan {
+                window::AfterPlan::Stop => "stop",
+                window::AfterPlan::Hold => "hold",
+            }
+        ),
+        window::Horizon::Plan => "each plan's own end (`--horizon plan`)".into(),
+    };
     let mut s = format!(
-        "# Corner-case evaluation\n\nScenes: {}. Seed {}. Refinement rounds: {}.\n\n",
+        "# Corner-case evaluation\n\nScenes: {}. Seed {}. Refinement rounds: {}. Attempts (scene, behaviour, t0) per agent: {}. Horizon: {horizon}.\n\n",
         r.scenes.join(", "),
         r.seed,
-        r.refine_rounds
+        r.refine_rounds,
+        r.attempts
     );
-    s.push_str("## Table I: controllability and success\n\nMean ± std over the cases that produced a plan. `as planned`: the agent's first plan; `refined`: the best round of closed-loop refinement. `invalid`: executed rollouts that are not physically valid (they stay in the denominators and count as not successful), then the count per reason (a rollout can have several).\n\n");
+    s.push_str("## Table I: controllability and success\n\nEvery agent is given the same attempts. `/ attempts` columns count over **all** attempts (no plan = not a corner case); *verified* = Zone Hit and Success (centre TTC < 1 s) on a physically valid rollout. `as planned`: the agent's first plan; `+ refine`: the best round of closed-loop refinement (`refine rounds`: rounds used beyond the first plan). Per-rollout columns: mean ± std over the attempts with a rollout. `invalid`: executed rollouts that are not physically valid (they count as not successful), then the count per reason (a rollout can have several).\n\n");
     s.push_str(&tables::table1_markdown(&r.table1));
+    s.push_str("\n### Paired: the attempts every agent planned\n\n");
+    s.push_str(&paired::paired_markdown(&r.table1_paired));
+    s.push_str("\n### Why no plan\n\n");
+    s.push_str(&paired::why_markdown(&r.why_no_plan, &r.agents));
     s.push_str("\n## Table II: feasibility and ride comfort (agent waypoints vs executed)\n\n");
     s.push_str(&tables::table2_markdown(&r.table2));
     if !r.validity.is_empty() {
@@ -213,6 +245,9 @@ fn write_report(out: &Path, r: &Report, plots: bool) -> Result<(), EvalError> {
     let w = |name: &str, text: String| scene::write_file_atomic(&out.join(name), text.as_bytes());
     w("table1.md", tables::table1_markdown(&r.table1))?;
     w("table1.csv", tables::table1_csv(&r.table1))?;
+    w("table1_paired.md", paired::paired_markdown(&r.table1_paired))?;
+    w("table1_paired.csv", paired::paired_csv(&r.table1_paired))?;
+    w("why_no_plan.md", paired::why_markdown(&r.why_no_plan, &r.agents))?;
     w("table2.md", tables::table2_markdown(&r.table2))?;
     w("table2.csv", tables::table2_csv(&r.table2))?;
     w("summary.md", summary_markdown(r))?;

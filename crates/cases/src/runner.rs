@@ -1,4 +1,5 @@
-//! One case end to end: reason -> simulate -> measure, then closed-loop refinement while the
+//! One case end to end: reason -> simulate -> measure over the evaluation window (`window`: one
+//! horizon for every agent), then closed-loop refinement while the
 //! executed trajectory misses the zone or MinTTC >= 1 s (up to `refine_rounds` times):
 //! * planner: round 1 aims the target ahead of the observed end-point error (pre-compensation)
 //!   and closes in harder (aimed TTC 0.3 s); later rounds take the next-ranked candidate;
@@ -11,6 +12,7 @@
 //! failure with its reason.
 
 use crate::spec::{AgentName, CaseSpec};
+use crate::window::{self, Horizon, Window};
 use metrics::CaseMetrics;
 use reason::backend::Backend;
 use reason::planner::{search, trajectory_to_aim};
@@ -30,6 +32,26 @@ pub struct CaseConfig {
     pub rollout: RolloutConfig,
     pub refine_rounds: usize,
     pub simulate: Box<SimulateFn>,
+    /// The window every plan is executed and measured over (one horizon for every agent).
+    pub window: Window,
+}
+
+/// Executes `plan` over the window: cut or extended to the horizon, and cut again at a contact
+/// with the ego (re-run up to the first control step at or after it; the prefix is identical,
+/// the simulation being deterministic).
+pub fn execute(scene: &Scene, plan: &Plan, cfg: &CaseConfig) -> Result<Executed, SimError> {
+    let windowed = cfg.window.apply(scene, plan);
+    let e = (cfg.simulate)(scene, &windowed, &cfg.rollout)?;
+    let Some(c) = e.first_contact.as_ref().filter(|c| c.other == "ego") else { return Ok(e) };
+    if cfg.window.horizon == Horizon::Plan {
+        return Ok(e);
+    }
+    let (t0, dt) = (windowed.start_time_s, windowed.dt_s);
+    let t_cut = t0 + ((c.t - t0) / dt - 1e-6).ceil().max(1.0) * dt;
+    if t_cut >= windowed.end_time_s() - 1e-6 {
+        return Ok(e);
+    }
+    (cfg.simulate)(scene, &window::cut(&windowed, t_cut), &cfg.rollout)
 }
 
 /// One executed attempt.
@@ -119,7 +141,9 @@ fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &E
     let world = World::for_options(scene, &ReasonOptions { t0: last.start_time_s, ..o.clone() })?;
     if r == 1 {
         let target = DVec2::from(last.target?);
-        let end = e.steps.last()?;
+        // Where the adversary was when its plan ended (the window may run on after it).
+        let t_end = last.end_time_s();
+        let end = e.steps.iter().min_by(|a, b| (a.t - t_end).abs().total_cmp(&(b.t - t_end).abs()))?;
         let aim = target + (target - DVec2::new(end.x, end.y));
         let v = world.vehicle(&last.adversary_track)?;
         let waypoints = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?.waypoints;
@@ -190,7 +214,7 @@ pub fn run_case(
     let mut rounds: Vec<Round> = Vec::new();
     let mut best_exec: Option<Executed> = None;
     for r in 0..=cfg.refine_rounds {
-        let executed = match (cfg.simulate)(scene, &plan, &cfg.rollout) {
+        let executed = match execute(scene, &plan, cfg) {
             Ok(e) => e,
             Err(e) => return fail("simulate", format!("round {r}: {e}")),
         };

@@ -1,6 +1,6 @@
-//! Which cases to run: scenes x behaviours x analysis times x agents, each with its own seed
-//! derived from the run seed and the case's position (so results do not depend on the order or
-//! the number of threads).
+//! Which cases to run: one list of *attempts* (scene x behaviour x analysis time), each with its
+//! own seed derived from the run seed and the attempt's position (so results do not depend on the
+//! order, the number of threads or the agents), run once by every agent.
 
 use scene::{Behavior, Scene};
 use serde::{Deserialize, Serialize};
@@ -92,7 +92,56 @@ impl T0Spec {
     }
 }
 
-/// One case: a scene, a behaviour, an analysis time (s from the first frame) and an agent.
+/// One attempt: a scene, a behaviour and an analysis time (s from the first frame), with its
+/// seed. Every agent is run on the same list of attempts, so every denominator is the same.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Attempt {
+    pub scene_index: usize,
+    pub scene: String,
+    pub behavior: Behavior,
+    pub t0_s: f64,
+    pub seed: u64,
+}
+
+impl Attempt {
+    /// A file-name-safe id, the same for every agent.
+    pub fn id(&self) -> String {
+        format!("{}_{}_t{:.1}", self.scene, self.behavior.as_str(), self.t0_s)
+    }
+
+    pub fn for_agent(&self, agent: AgentName) -> CaseSpec {
+        CaseSpec {
+            scene_index: self.scene_index,
+            scene: self.scene.clone(),
+            behavior: self.behavior,
+            t0_s: self.t0_s,
+            agent,
+            seed: self.seed,
+        }
+    }
+}
+
+/// Every attempt, in a fixed order (scene, behaviour, t0). The seed depends only on the run seed
+/// and the attempt's position, never on the agent: agents face equal draws.
+pub fn attempts(scenes: &[Scene], behaviours: &[Behavior], t0: &T0Spec, seed: u64) -> Vec<Attempt> {
+    let mut out = Vec::new();
+    for (si, s) in scenes.iter().enumerate() {
+        for (bi, b) in behaviours.iter().enumerate() {
+            for (ti, t) in t0.times(s).into_iter().enumerate() {
+                out.push(Attempt {
+                    scene_index: si,
+                    scene: s.name.clone(),
+                    behavior: *b,
+                    t0_s: t,
+                    seed: seed ^ ((si as u64) << 40) ^ ((bi as u64) << 20) ^ ti as u64,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// One case: an attempt run by one agent.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CaseSpec {
     pub scene_index: usize,
@@ -106,11 +155,16 @@ pub struct CaseSpec {
 impl CaseSpec {
     /// A file-name-safe unique id.
     pub fn id(&self) -> String {
-        format!("{}_{}_t{:.1}_{}", self.scene, self.behavior.as_str(), self.t0_s, self.agent.as_str())
+        format!("{}_{}", self.attempt_id(), self.agent.as_str())
+    }
+
+    /// The id of the attempt, without the agent.
+    pub fn attempt_id(&self) -> String {
+        format!("{}_{}_t{:.1}", self.scene, self.behavior.as_str(), self.t0_s)
     }
 }
 
-/// Every case, in a fixed order (scene, behaviour, t0, agent).
+/// Every case, in a fixed order (scene, behaviour, t0, agent): each attempt once per agent.
 pub fn enumerate(
     scenes: &[Scene],
     behaviours: &[Behavior],
@@ -118,26 +172,7 @@ pub fn enumerate(
     agents: &[AgentName],
     seed: u64,
 ) -> Vec<CaseSpec> {
-    let mut out = Vec::new();
-    for (si, s) in scenes.iter().enumerate() {
-        for (bi, b) in behaviours.iter().enumerate() {
-            for (ti, t) in t0.times(s).into_iter().enumerate() {
-                for a in agents {
-                    // Same seed for every agent of a (scene, behaviour, t0): agents face equal draws.
-                    let case_seed = seed ^ ((si as u64) << 40) ^ ((bi as u64) << 20) ^ ti as u64;
-                    out.push(CaseSpec {
-                        scene_index: si,
-                        scene: s.name.clone(),
-                        behavior: *b,
-                        t0_s: t,
-                        agent: *a,
-                        seed: case_seed,
-                    });
-                }
-            }
-        }
-    }
-    out
+    attempts(scenes, behaviours, t0, seed).iter().flat_map(|a| agents.iter().map(|g| a.for_agent(*g))).collect()
 }
 
 #[cfg(test)]

@@ -1,9 +1,15 @@
-//! The paper's tables from case results.
-//! * Table I (controllability): per agent, Zone Hit, Success and MinTTC as mean +- std (population
-//!   std, like numpy), with centre-TTC and box-TTC columns, once as planned (round 0) and once
-//!   after closed-loop refinement (best round) for agents that refine.
-//! * Table II (comfort): per agent, |a_lat|95, |kappa_dot|95 and ComfortViol of the agent's raw
-//!   waypoints vs the physically executed trajectory (round 0).
+//! The paper's tables from case results. Every agent runs the same attempts (`spec`) over the same
+//! window (`window`), so every per-attempt column has the same denominator for every agent.
+//! * Table I (controllability): per agent, one row `as planned` (round 0) and, for agents that
+//!   refine, one row `+ refine` (the best round of closed-loop refinement, with the refinement
+//!   rounds it used). Per-attempt columns count over **all** attempts: planned, no feasible,
+//!   failed, and Zone Hit, Success and *verified* (Zone Hit and Success and a valid rollout) as
+//!   k/N. Then, per executed rollout: validity in all and per reason, and Zone Hit, Success and
+//!   MinTTC as mean +- std (population std, like numpy) with centre-TTC and box-TTC variants.
+//! * The paired comparison and the reasons for no plan: [`crate::paired`].
+//! * Table II (comfort): per agent, |a_lat|95, |kappa_dot|95 and ComfortViol of the raw waypoints
+//!   vs the physically executed trajectory (round 0), both over the evaluation window (the plan
+//!   as executed, continued or cut to the horizon).
 //! * Physical validity of the rollouts (both tables): how many executed cases are invalid and
 //!   how many for each reason (`tracking_diverged`, `friction_limit`, `contact_with_other`,
 //!   `left_road`; a case can have several). Invalid cases stay in every denominator and count
@@ -87,17 +93,47 @@ const INVALID_CSV_HEADER: &str = "invalid,tracking_diverged,friction_limit,conta
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Table1Row {
     pub agent: AgentName,
+    /// `as planned` (round 0) or `+ refine` (best round).
     pub variant: String,
-    pub cases: usize,
+    /// Attempts given to the agent (the same for every agent).
+    pub attempts: usize,
+    /// Attempts that produced a plan (and a rollout).
+    pub planned: usize,
     pub no_feasible: usize,
+    /// A stage returned an error (agent, simulation or metrics).
     pub failed: usize,
+    /// Rollouts executed (`+ refine`: over every round).
+    pub rollouts: usize,
+    /// Refinement rounds used beyond the first plan (`+ refine` rows only).
+    pub refine_rounds_used: Option<usize>,
+    /// Measured cases (one rollout per planned attempt): the per-rollout columns' denominator.
+    pub cases: usize,
+    pub valid: usize,
     pub validity: InvalidCounts,
+    /// Over all attempts: Zone Hit, Success, and verified (Zone Hit and Success, valid rollout).
+    pub zone_hit_k: usize,
+    pub success_k: usize,
+    pub verified_k: usize,
     pub zone_hit: Option<Stat>,
     pub zone_hit_paper_axes: Option<Stat>,
     pub success_center: Option<Stat>,
     pub min_ttc_center_s: Option<Stat>,
     pub success_box: Option<Stat>,
     pub min_ttc_box_s: Option<Stat>,
+}
+
+/// A verified corner case: Zone Hit and Success (centre TTC < 1 s) on a physically valid rollout.
+pub fn verified(m: &metrics::CaseMetrics) -> bool {
+    m.validity.valid && m.zone_hit && m.success_center
+}
+
+/// `k/N (rate)`.
+pub fn frac(k: usize, n: usize) -> String {
+    if n == 0 {
+        format!("{k}/0")
+    } else {
+        format!("{k}/{n} ({:.3})", k as f64 / n as f64)
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -134,16 +170,34 @@ fn row1(
     variant: &str,
     results: &[&CaseResult],
     pick: impl Fn(&CaseResult) -> Option<&Round>,
+    refine: bool,
 ) -> Table1Row {
     let rounds: Vec<&Round> = results.iter().filter_map(|r| pick(r)).collect();
     let col = |f: &dyn Fn(&Round) -> f64| stat(&rounds.iter().map(|r| f(r)).collect::<Vec<_>>());
+    let count = |f: &dyn Fn(&Round) -> bool| rounds.iter().filter(|r| f(r)).count();
+    let all_rounds: usize = results
+        .iter()
+        .map(|r| match &r.status {
+            Status::Done { rounds, .. } => rounds.len(),
+            _ => 0,
+        })
+        .sum();
+    let planned = results.iter().filter(|r| matches!(r.status, Status::Done { .. })).count();
     Table1Row {
         agent,
         variant: variant.into(),
-        cases: rounds.len(),
+        attempts: results.len(),
+        planned,
         no_feasible: results.iter().filter(|r| matches!(r.status, Status::NoFeasible { .. })).count(),
         failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. })).count(),
+        rollouts: if refine { all_rounds } else { rounds.len() },
+        refine_rounds_used: refine.then(|| all_rounds - planned),
+        cases: rounds.len(),
+        valid: count(&|r| r.metrics.validity.valid),
         validity: InvalidCounts::of(&rounds),
+        zone_hit_k: count(&|r| r.metrics.zone_hit),
+        success_k: count(&|r| r.metrics.success_center),
+        verified_k: count(&|r| verified(&r.metrics)),
         zone_hit: col(&|r| b(r.metrics.zone_hit)),
         zone_hit_paper_axes: col(&|r| b(r.metrics.zone_hit_paper_axes)),
         success_center: col(&|r| b(r.metrics.success_center)),
@@ -153,13 +207,16 @@ fn row1(
     }
 }
 
+pub const AS_PLANNED: &str = "as planned";
+pub const REFINED: &str = "+ refine";
+
 pub fn table1(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table1Row> {
     let mut rows = Vec::new();
     for a in agents {
         let mine: Vec<&CaseResult> = results.iter().filter(|r| r.spec.agent == *a).collect();
-        rows.push(row1(*a, "as planned", &mine, |r| r.first()));
+        rows.push(row1(*a, AS_PLANNED, &mine, |r| r.first(), false));
         if a.refines() {
-            rows.push(row1(*a, "refined", &mine, |r| r.best()));
+            rows.push(row1(*a, REFINED, &mine, |r| r.best(), true));
         }
     }
     rows
@@ -215,16 +272,23 @@ pub fn validity(results: &[CaseResult], agents: &[AgentName]) -> Vec<ValidityRow
 }
 
 pub fn table1_markdown(rows: &[Table1Row]) -> String {
-    let mut s = format!("| agent | variant | cases | no feasible | failed | {INVALID_MD_HEADER} | Zone Hit | Success (centre TTC < 1 s) | MinTTC centre (s) | Success (box TTC < 1 s) | MinTTC box (s) | Zone Hit, paper axes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut s = format!("| agent | variant | attempts | planned | no feasible | failed | rollouts | refine rounds | Zone Hit / attempts | Success / attempts | verified / attempts | valid | {INVALID_MD_HEADER} | Zone Hit per rollout | Success (centre TTC < 1 s) per rollout | MinTTC centre (s) | Success (box TTC < 1 s) per rollout | MinTTC box (s) | Zone Hit, paper axes |\n|{}\n", "---|".repeat(23));
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.agent.as_str(),
             r.variant,
-            r.cases,
+            r.attempts,
+            r.planned,
             r.no_feasible,
             r.failed,
+            r.rollouts,
+            r.refine_rounds_used.map_or("-".into(), |n| n.to_string()),
+            frac(r.zone_hit_k, r.attempts),
+            frac(r.success_k, r.attempts),
+            frac(r.verified_k, r.attempts),
+            r.valid,
             r.validity.cells(),
             fmt(&r.zone_hit, 3),
             fmt(&r.success_center, 3),
@@ -262,16 +326,23 @@ fn csv_stat(s: &Option<Stat>) -> String {
 }
 
 pub fn table1_csv(rows: &[Table1Row]) -> String {
-    let mut s = format!("agent,variant,cases,no_feasible,failed,{INVALID_CSV_HEADER},zone_hit_mean,zone_hit_std,success_center_mean,success_center_std,min_ttc_center_mean,min_ttc_center_std,success_box_mean,success_box_std,min_ttc_box_mean,min_ttc_box_std,zone_hit_paper_axes_mean,zone_hit_paper_axes_std\n");
+    let mut s = format!("agent,variant,attempts,planned,no_feasible,failed,rollouts,refine_rounds_used,zone_hit_k,success_k,verified_k,valid,{INVALID_CSV_HEADER},zone_hit_mean,zone_hit_std,success_center_mean,success_center_std,min_ttc_center_mean,min_ttc_center_std,success_box_mean,success_box_std,min_ttc_box_mean,min_ttc_box_std,zone_hit_paper_axes_mean,zone_hit_paper_axes_std\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.agent.as_str(),
             r.variant,
-            r.cases,
+            r.attempts,
+            r.planned,
             r.no_feasible,
             r.failed,
+            r.rollouts,
+            r.refine_rounds_used.map_or(String::new(), |n| n.to_string()),
+            r.zone_hit_k,
+            r.success_k,
+            r.verified_k,
+            r.valid,
             r.validity.csv(),
             csv_stat(&r.zone_hit),
             csv_stat(&r.success_center),

@@ -116,6 +116,8 @@ pub fn select_case_with(
         rollout: sim::RolloutConfig::default(),
         refine_rounds: req.refine_rounds,
         simulate,
+        // One case is rendered as planned: its own plan end, no continuation after it.
+        window: cases::window::Window { horizon: cases::window::Horizon::Plan, ..Default::default() },
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;

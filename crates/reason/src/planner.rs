@@ -17,8 +17,11 @@
 //! MinTTC and whether, at the closest approach to the ego, it is inside the target zone. Score
 //! ([`score`]): predicted MinTTC >= 1 s ranks last, then lower MinTTC, then 0.02 per m/s^2 of
 //! peak acceleration (smoother); a path that touches a logged bystander before the ego
-//! ([`crate::clearance`]) ranks after every clear one. Candidates whose closest approach falls
-//! outside the target zone do not realize the behaviour and are dropped.
+//! ([`crate::clearance`]) ranks after every clear one. A candidate whose predicted closest
+//! approach falls outside the target zone ranks after every predicted hit but is **kept**:
+//! "no feasible vehicle" means that no vehicle can perform the behaviour (positioned for it, and a
+//! trajectory within the limits above), decided before any metric is predicted; a predicted miss
+//! is returned when nothing better exists and its miss is counted by the evaluation.
 
 use crate::behavior::{candidate_zones, spec, EndPolicy};
 use crate::clearance::Bystanders;
@@ -261,7 +264,7 @@ pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64
         return Err(if eligible == 0 {
             format!("no vehicle within range is positioned for {} ({})", b.as_str(), spec(b).description)
         } else {
-            format!("{eligible} vehicle(s) are positioned for {} but none can reach a target zone, with its closest approach to the ego inside the zone, within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
+            format!("{eligible} vehicle(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
         });
     }
     out.sort_by(|a, b| a.score.total_cmp(&b.score));
@@ -285,10 +288,8 @@ pub fn search_vehicle_zone(
         for _ in 0..TARGETS_PER_CANDIDATE {
             let target = sample_target(world, zone, layout, ttc, rng);
             if let Some(p) = trajectory_to(world, v, b, target, ttc, dt) {
+                // A predicted miss ranks last (see `score`) but stays: the metric decides, not the search.
                 let hit = zone_rect(zone, layout, world.ego_length, world.ego_width).contains(p.closest_local);
-                if !hit {
-                    continue; // it would pass closest to the ego outside the zone: not this behaviour
-                }
                 out.push(Candidate {
                     vehicle_id: v.id.clone(),
                     behavior: b,

@@ -1,4 +1,4 @@
-//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --out <dir>`
+//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --horizon 5 --after-plan stop --out <dir>`
 use cases::runner::CaseConfig;
 use cases::spec::{AgentName, T0Spec};
 use cases::EvalConfig;
@@ -23,6 +23,14 @@ pub struct Args {
     out: PathBuf,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Evaluation horizon for every agent: seconds from t0 (clipped at the log's end), or `plan`
+    /// (each plan's own end, the old protocol).
+    #[arg(long, default_value = "5")]
+    horizon: String,
+    /// What the adversary does between its plan's end and the horizon: `stop` (brake to rest at
+    /// 4 m/s^2) or `hold` (keep its end velocity).
+    #[arg(long, default_value = "stop")]
+    after_plan: String,
     /// Closed-loop refinement rounds (0 = off).
     #[arg(long, default_value_t = 3)]
     refine_rounds: usize,
@@ -61,6 +69,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             rollout: sim::RolloutConfig::default(),
             refine_rounds: a.refine_rounds,
             simulate: a.physics.simulate_fn()?,
+            window: cases::window::Window {
+                horizon: a.horizon.parse().map_err(anyhow::Error::msg)?,
+                after_plan: a.after_plan.parse().map_err(anyhow::Error::msg)?,
+            },
         },
     };
     let llm = a.llm.clone();
@@ -75,6 +87,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let report = cases::run_eval(&scenes, &cfg, &factory, &pb)?;
     pb.finish_and_clear();
     println!("{}", cases::summary_markdown(&report));
-    println!("wrote {}/summary.md, table1.{{md,csv}}, table2.{{md,csv}}, report.json and cases/", a.out.display());
+    println!(
+        "wrote {}/summary.md, table1.{{md,csv}}, table1_paired.{{md,csv}}, why_no_plan.md, table2.{{md,csv}}, report.json and cases/",
+        a.out.display()
+    );
     Ok(())
 }
