@@ -259,14 +259,13 @@ pub fn run_demo_on<B: Backend + Clone>(
     }
 
     // Vehicle replacement: the first case's adversary (the lead vehicle without a case).
-    let track = cases
-        .iter()
-        .find_map(|(_, s): &(Behavior, RunSummary)| {
-            s.result.as_ref().and_then(|r| r.best()).map(|c| c.plan.adversary_track.clone())
-        })
-        .unwrap_or_else(|| "lead-1".to_string());
+    let first_case = cases.iter().find_map(|(b, s): &(Behavior, RunSummary)| {
+        s.result.as_ref().and_then(|r| r.best()).map(|c| (*b, c.plan.adversary_track.clone()))
+    });
+    let track = first_case.as_ref().map_or_else(|| "lead-1".to_string(), |(_, t)| t.clone());
+    let case_dir = first_case.map(|(b, _)| out.join("cases").join(b.as_str()));
     let replace_dir = out.join("replacement");
-    let replace_key = json!({"model": train_key, "track": track, "version": 1});
+    let replace_key = json!({"model": train_key, "track": track, "case": case_dir, "version": 2});
     let synth_cfg = synth::SynthConfig {
         frames: cfg.frames,
         cameras: cfg.cameras,
@@ -278,7 +277,8 @@ pub fn run_demo_on<B: Backend + Clone>(
     };
     stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
         let original = trained.as_ref().unwrap_or(&model);
-        crate::replace_showcase::showcase(backend, original, &scene, &synth_cfg, &track, &replace_dir).map(|_| ())
+        let case = case_dir.as_deref();
+        crate::replace_showcase::showcase(backend, original, &scene, &synth_cfg, &track, case, &replace_dir).map(|_| ())
     })?;
     let replacement = scene::format::read_json(&replace_dir.join(crate::replace_showcase::SHOWCASE_FILE)).ok();
 
