@@ -38,6 +38,10 @@ pub struct DemoConfig {
     pub agent: AgentName,
     pub seed: u64,
     pub render: RenderSettings,
+    /// `<track>=<ply file|asset name|auto>`: actors replaced by aligned assets before the cases
+    /// (names and `auto` from `<out>/assets`, filled with the synthetic sedan, van and truck).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub replace: Vec<String>,
 }
 
 impl Default for DemoConfig {
@@ -54,6 +58,7 @@ impl Default for DemoConfig {
             agent: AgentName::Planner,
             seed: 0,
             render: RenderSettings::default(),
+            replace: vec![],
         }
     }
 }
@@ -201,7 +206,33 @@ pub fn run_demo_on<B: Backend + Clone>(
     let recon: recon::eval::EvalReport = scene::format::read_json(&eval_dir.join("eval.json"))?;
 
     let scene = scene::load_scene(&scene_dir)?;
-    let (model, record) = recon::model_io::load_model(&model_dir)?;
+    let (mut model, record) = recon::model_io::load_model(&model_dir)?;
+    // The replacement showcase compares against the model as trained.
+    let trained = if cfg.replace.is_empty() { None } else { Some(model.clone()) };
+    if !cfg.replace.is_empty() {
+        let lib = out.join("assets");
+        let lib_key =
+            json!({"kinds": ["sedan", "van", "truck"], "voxel": crate::synth_asset::DEFAULT_VOXEL_M, "version": 1});
+        stages.cached("asset library", &lib, &lib_key, || {
+            for kind in ["sedan", "van", "truck"] {
+                let v = crate::synth_asset::vehicle_of_kind(kind, [0.75, 0.08, 0.08])?;
+                let g = crate::synth_asset::vehicle_asset(&v, crate::synth_asset::DEFAULT_VOXEL_M)?;
+                let source = render::asset::library::AssetSource::Synth {
+                    vehicle: kind.into(),
+                    method: crate::synth_asset::METHOD.into(),
+                };
+                let up = render::asset::library::UpAxis::Z;
+                let class = scene::ObjectClass::Vehicle;
+                render::asset::library::Library::add(&lib, &format!("synth-{kind}"), class, source, up, &g, true)?;
+            }
+            Ok(())
+        })?;
+        let pairs =
+            cfg.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
+        let opts = render::asset::align::AlignOptions::default();
+        let up = render::asset::library::UpAxis::Z;
+        render::asset::replace::replace_specs(&mut model, &scene_dir, &pairs, &lib, up, &opts)?;
+    }
     let mut cases = Vec::new();
     for &behavior in &cfg.behaviors {
         let case_dir = out.join("cases").join(behavior.as_str());
@@ -213,7 +244,10 @@ pub fn run_demo_on<B: Backend + Clone>(
             seeds_per_t0: 3,
             refine_rounds: 3,
         };
-        let key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": cfg.render});
+        let mut key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": cfg.render});
+        if !cfg.replace.is_empty() {
+            key["replace"] = json!(cfg.replace);
+        }
         stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
             let inputs = RunInputs { scene: &scene, model: &model, backend, render: &cfg.render, out: &case_dir };
             let pb = progress.bar();
@@ -225,14 +259,13 @@ pub fn run_demo_on<B: Backend + Clone>(
     }
 
     // Vehicle replacement: the first case's adversary (the lead vehicle without a case).
-    let track = cases
-        .iter()
-        .find_map(|(_, s): &(Behavior, RunSummary)| {
-            s.result.as_ref().and_then(|r| r.best()).map(|c| c.plan.adversary_track.clone())
-        })
-        .unwrap_or_else(|| "lead-1".to_string());
+    let first_case = cases.iter().find_map(|(b, s): &(Behavior, RunSummary)| {
+        s.result.as_ref().and_then(|r| r.best()).map(|c| (*b, c.plan.adversary_track.clone()))
+    });
+    let track = first_case.as_ref().map_or_else(|| "lead-1".to_string(), |(_, t)| t.clone());
+    let case_dir = first_case.map(|(b, _)| out.join("cases").join(b.as_str()));
     let replace_dir = out.join("replacement");
-    let replace_key = json!({"model": train_key, "track": track, "version": 1});
+    let replace_key = json!({"model": train_key, "track": track, "case": case_dir, "version": 2});
     let synth_cfg = synth::SynthConfig {
         frames: cfg.frames,
         cameras: cfg.cameras,
@@ -243,7 +276,9 @@ pub fn run_demo_on<B: Backend + Clone>(
         preview: false,
     };
     stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
-        crate::replace_showcase::showcase(backend, &model, &scene, &synth_cfg, &track, &replace_dir).map(|_| ())
+        let original = trained.as_ref().unwrap_or(&model);
+        let case = case_dir.as_deref();
+        crate::replace_showcase::showcase(backend, original, &scene, &synth_cfg, &track, case, &replace_dir).map(|_| ())
     })?;
     let replacement = scene::format::read_json(&replace_dir.join(crate::replace_showcase::SHOWCASE_FILE)).ok();
 

@@ -382,6 +382,21 @@ fn replacement_section(
         let link = copy_asset(&dir.join(file), assets, &format!("replacement/{file}"))?;
         let _ = write!(h, "<td>{label}<br><img src=\"{link}\" alt=\"{label}\"></td>");
     }
-    h.push_str("</tr></table></div>");
+    h.push_str("</tr></table>");
+    if let Some(c) = &r.case {
+        let _ = write!(
+            h,
+            "<p>The corner case whose adversary this is, at its last executed instant ({:.2} s, camera {}), with the \
+             model as trained and with the replacement:</p><table><tr>",
+            c.t,
+            esc(&c.camera)
+        );
+        for (file, label) in crate::replace_showcase::CASE_PICTURES.iter().zip(["as trained", "replaced"]) {
+            let link = copy_asset(&dir.join(file), assets, &format!("replacement/{file}"))?;
+            let _ = write!(h, "<td>{label}<br><img src=\"{link}\" alt=\"case {label}\"></td>");
+        }
+        h.push_str("</tr></table>");
+    }
+    h.push_str("</div>");
     Ok(())
 }

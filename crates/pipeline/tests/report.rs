@@ -57,6 +57,11 @@ fn demo_report_loads_in_a_browser_and_the_second_run_is_cached() {
     let rep = first.replacement.as_ref().expect("the vehicle replacement case");
     println!("replacement of {}: before {:?}, after {:?}", rep.track_id, rep.before, rep.after);
     assert!(rep.after.iou > rep.before.iou, "replaced actor covers the vehicle better: {rep:?}");
+    let still = rep.case.as_ref().expect("stills of the case whose adversary was replaced");
+    println!("case stills at {:.2} s from {}", still.t, still.camera);
+    for f in pipeline::replace_showcase::CASE_PICTURES {
+        assert!(out.join("replacement").join(f).is_file(), "{f}");
+    }
     assert!(std::fs::read_to_string(out.join("report.html")).unwrap().contains("Vehicle replacement"));
     let second = run_demo(&cfg, &out, &Quiet).expect("second demo");
     let rebuilt: Vec<_> = second.timings.iter().filter(|t| t.stage != "report" && !t.cached).collect();

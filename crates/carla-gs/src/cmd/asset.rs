@@ -179,6 +179,10 @@ impl ReplaceFlags {
         if self.replace.is_empty() {
             return Ok(());
         }
+        anyhow::ensure!(
+            self.replace_lambda >= 0.0 && self.replace_lambda.is_finite(),
+            "--replace-lambda must be a finite number >= 0"
+        );
         let pairs =
             self.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
         let opts = AlignOptions { lambda: self.replace_lambda, isotropic: false };

@@ -22,6 +22,10 @@ pub struct Args {
     /// Where the rasterizer runs (training, evaluation, videos).
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
+    /// Replace an actor with an aligned asset before the cases: <track>=<PLY file, asset name of
+    /// <out>/assets (synth-sedan, synth-van, synth-truck), or auto>. Repeatable.
+    #[arg(long = "replace")]
+    replace: Vec<String>,
 }
 
 struct Terminal;
@@ -54,6 +58,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         cfg.agent.as_str()
     );
     cfg.seed = a.seed;
+    cfg.replace = a.replace.clone();
     let r = match a.device {
         Device::Cpu => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
         Device::Cuda => run_demo_on(&open_cuda()?, &cfg, &a.out, &Terminal)?,

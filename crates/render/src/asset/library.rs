@@ -286,6 +286,35 @@ pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 
 mod tests {
     use super::*;
 
+    fn entry(name: &str, class: ObjectClass, size_lwh: [f64; 3]) -> AssetEntry {
+        AssetEntry {
+            name: name.into(),
+            class,
+            size_lwh,
+            source: AssetSource::Synth { vehicle: name.into(), method: "test".into() },
+            file: format!("{name}.ply"),
+            up: UpAxis::Z,
+            gaussians: 1,
+            sh_degree: 0,
+        }
+    }
+
+    #[test]
+    fn auto_picks_the_nearest_size_of_the_class() {
+        let lib = Library {
+            format: LIBRARY_FORMAT.into(),
+            assets: vec![
+                entry("sedan", ObjectClass::Vehicle, [4.5, 1.85, 1.48]),
+                entry("truck", ObjectClass::Vehicle, [7.5, 2.4, 3.0]),
+                entry("person", ObjectClass::Pedestrian, [0.6, 0.6, 1.8]),
+            ],
+        };
+        assert_eq!(lib.nearest(ObjectClass::Vehicle, [4.2, 1.8, 1.5]).unwrap().name, "sedan");
+        assert_eq!(lib.nearest(ObjectClass::Vehicle, [8.0, 2.5, 3.2]).unwrap().name, "truck");
+        assert_eq!(lib.nearest(ObjectClass::Pedestrian, [8.0, 2.5, 3.2]).unwrap().name, "person");
+        assert!(lib.nearest(ObjectClass::Cyclist, [1.8, 0.6, 1.7]).is_none());
+    }
+
     #[test]
     fn up_axes_are_proper_rotations_taking_the_axis_to_z() {
         let axes = [

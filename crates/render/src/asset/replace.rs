@@ -175,6 +175,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn replace_arguments_parse_or_name_the_fault() {
+        assert_eq!(parse_replace_arg("lead-1=auto").unwrap(), ("lead-1".into(), "auto".into()));
+        assert_eq!(parse_replace_arg("a=b=c.ply").unwrap(), ("a".into(), "b=c.ply".into()));
+        for bad in ["lead-1", "=auto", "lead-1="] {
+            assert!(parse_replace_arg(bad).unwrap_err().to_string().contains(bad), "{bad}");
+        }
+    }
+
+    #[test]
     fn box_points_span_the_box() {
         let p = box_points([4.0, 2.0, 1.5]);
         let f = super::super::align::frame_of(&p).unwrap();
