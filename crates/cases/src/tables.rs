@@ -142,7 +142,7 @@ fn row1(
         variant: variant.into(),
         cases: rounds.len(),
         no_feasible: results.iter().filter(|r| matches!(r.status, Status::NoFeasible { .. })).count(),
-        failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. })).count(),
+        failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. } | Status::Rejected { .. })).count(),
         validity: InvalidCounts::of(&rounds),
         zone_hit: col(&|r| b(r.metrics.zone_hit)),
         zone_hit_paper_axes: col(&|r| b(r.metrics.zone_hit_paper_axes)),
@@ -190,7 +190,8 @@ fn slot(v: &Validity) -> usize {
     match v {
         Validity::RawValid => 0,
         Validity::ValidAfterRetry { .. } => 1,
-        Validity::Repaired { .. } => 2,
+        // `Invalid` is only in rejected cases (no round): see `llm_validity`.
+        Validity::Repaired { .. } | Validity::Invalid { .. } => 2,
     }
 }
 

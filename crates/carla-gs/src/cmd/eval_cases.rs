@@ -30,6 +30,10 @@ pub struct Args {
     #[arg(long)]
     no_plots: bool,
     #[command(flatten)]
+    constraints: super::constraints::ConstraintArgs,
+    #[command(flatten)]
+    protocol: super::constraints::ProtocolArgs,
+    #[command(flatten)]
     llm: super::llm::LlmArgs,
     #[command(flatten)]
     physics: super::backend::BackendArgs,
@@ -57,7 +61,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         out: a.out.clone(),
         plots: !a.no_plots,
         case: CaseConfig {
-            reason: ReasonOptions::default(),
+            reason: a.protocol.apply(a.constraints.apply(ReasonOptions::default())?),
             rollout: sim::RolloutConfig::default(),
             refine_rounds: a.refine_rounds,
             simulate: a.physics.simulate_fn()?,
@@ -75,6 +79,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let report = cases::run_eval(&scenes, &cfg, &factory, &pb)?;
     pb.finish_and_clear();
     println!("{}", cases::summary_markdown(&report));
-    println!("wrote {}/summary.md, table1.{{md,csv}}, table2.{{md,csv}}, report.json and cases/", a.out.display());
+    println!("wrote {}/summary.md, table1.{{md,csv}}, table2.{{md,csv}}, table_llm_validity.{{md,csv}} (LLM agents), report.json and cases/", a.out.display());
     Ok(())
 }
