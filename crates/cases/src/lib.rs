@@ -5,6 +5,7 @@
 //! Markdown, CSV and JSON, per-case files and plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
 //! results do not depend on the thread count (every case has its own seed).
 
+pub mod llm_validity;
 pub mod paired;
 pub mod plots;
 pub mod runner;
@@ -66,6 +67,9 @@ pub struct Report {
     pub agents: Vec<AgentName>,
     pub table2: Vec<tables::Table2Row>,
     pub validity: Vec<tables::ValidityRow>,
+    /// LLM reply validity, the paper's way (first try) beside ours ([`llm_validity`]).
+    #[serde(default)]
+    pub llm_validity: Vec<llm_validity::LlmValidityRow>,
     pub failures: Vec<Failure>,
     pub timing: Vec<AgentTiming>,
     pub plot_errors: Vec<String>,
@@ -157,6 +161,9 @@ pub fn run_eval(
             Status::Failed { stage, reason } => {
                 Some(Failure { case: r.spec.id(), stage: stage.clone(), reason: reason.clone() })
             }
+            Status::Rejected { reason, .. } => {
+                Some(Failure { case: r.spec.id(), stage: "reply".into(), reason: reason.clone() })
+            }
             _ => None,
         })
         .collect();
@@ -172,6 +179,7 @@ pub fn run_eval(
         agents: cfg.agents.clone(),
         table2: tables::table2(&cases, &cfg.agents),
         validity: tables::validity(&cases, &cfg.agents),
+        llm_validity: llm_validity::rows(&cases, &cfg.agents),
         failures,
         timing,
         plot_errors,
@@ -224,6 +232,10 @@ pub fn summary_markdown(r: &Report) -> String {
             );
         }
     }
+    if !r.llm_validity.is_empty() {
+        s.push_str("\n## LLM reply validity: the paper's way (first try) and ours\n\n");
+        s.push_str(&llm_validity::markdown(&r.llm_validity));
+    }
     s.push_str("\n## Failures\n\n");
     if r.failures.is_empty() {
         s.push_str("None.\n");
@@ -250,6 +262,10 @@ fn write_report(out: &Path, r: &Report, plots: bool) -> Result<(), EvalError> {
     w("why_no_plan.md", paired::why_markdown(&r.why_no_plan, &r.agents))?;
     w("table2.md", tables::table2_markdown(&r.table2))?;
     w("table2.csv", tables::table2_csv(&r.table2))?;
+    if !r.llm_validity.is_empty() {
+        w("table_llm_validity.md", llm_validity::markdown(&r.llm_validity))?;
+        w("table_llm_validity.csv", llm_validity::csv(&r.llm_validity))?;
+    }
     w("summary.md", summary_markdown(r))?;
     scene::format::write_json_pretty(&out.join("report.json"), r)?;
     if plots {

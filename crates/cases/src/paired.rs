@@ -174,6 +174,7 @@ pub fn why_no_plan(results: &[CaseResult], agents: &[AgentName]) -> Vec<(String,
         Status::Done { .. } => None,
         Status::NoFeasible { reason } => Some(why_class(reason).to_string()),
         Status::Failed { stage, .. } => Some(format!("failed: {stage}")),
+        Status::Rejected { .. } => Some("rejected: LLM reply invalid after re-prompts".to_string()),
     };
     let classes: BTreeSet<String> = results.iter().filter_map(class).collect();
     classes

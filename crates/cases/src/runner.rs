@@ -15,7 +15,8 @@ use crate::spec::{AgentName, CaseSpec};
 use crate::window::{self, Horizon, Window};
 use metrics::CaseMetrics;
 use reason::backend::Backend;
-use reason::planner::{search, trajectory_to_aim};
+use reason::constraints::search;
+use reason::planner::trajectory_to_aim;
 use reason::world::World;
 use reason::{Agent, Outcome, ReasonOptions, ValidityStats};
 use scene::glam::DVec2;
@@ -67,9 +68,23 @@ pub struct Round {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "status")]
 pub enum Status {
-    Done { rounds: Vec<Round>, best: usize },
-    NoFeasible { reason: String },
-    Failed { stage: String, reason: String },
+    Done {
+        rounds: Vec<Round>,
+        best: usize,
+    },
+    NoFeasible {
+        reason: String,
+    },
+    Failed {
+        stage: String,
+        reason: String,
+    },
+    /// An LLM agent's reply stayed invalid after the re-prompts and no repair was asked
+    /// (`--repair none`, the paper protocol's default): no plan; counted with the failures.
+    Rejected {
+        validity: ValidityStats,
+        reason: String,
+    },
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -154,7 +169,7 @@ fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &E
         };
         return Some((plan, "pre-compensated target".into()));
     }
-    let ranked = search(&world, last.behavior, o.layout, o.dt, o.seed).ok()?;
+    let ranked = search(&world, last.behavior, o).ok()?;
     let c = ranked.get(r - 1)?;
     let plan = Plan {
         adversary_track: c.vehicle_id.clone(),
@@ -207,6 +222,9 @@ pub fn run_case(
             Ok(Outcome::NoFeasible { reason }) => {
                 return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
             }
+            Ok(Outcome::Rejected { stats, reason }) => {
+                return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
+            }
             Ok(Outcome::Plan { plan, stats }) => (plan, stats),
         };
     let mut how = "agent".to_string();
@@ -236,7 +254,7 @@ pub fn run_case(
             let o2 = ReasonOptions { feedback: Some(fb), seed: spec.seed.wrapping_add(r as u64 + 1), ..o.clone() };
             match reason_once(scene, &o2, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
                 Ok(Outcome::Plan { plan, stats }) => Some((plan, stats, "agent with feedback".to_string())),
-                Ok(Outcome::NoFeasible { .. }) => None,
+                Ok(Outcome::NoFeasible { .. } | Outcome::Rejected { .. }) => None,
                 Err(e) => return fail("reason", format!("refinement round {}: {e}", r + 1)),
             }
         } else {

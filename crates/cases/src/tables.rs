@@ -189,7 +189,7 @@ fn row1(
         attempts: results.len(),
         planned,
         no_feasible: results.iter().filter(|r| matches!(r.status, Status::NoFeasible { .. })).count(),
-        failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. })).count(),
+        failed: results.iter().filter(|r| matches!(r.status, Status::Failed { .. } | Status::Rejected { .. })).count(),
         rollouts: if refine { all_rounds } else { rounds.len() },
         refine_rounds_used: refine.then(|| all_rounds - planned),
         cases: rounds.len(),
@@ -247,7 +247,8 @@ fn slot(v: &Validity) -> usize {
     match v {
         Validity::RawValid => 0,
         Validity::ValidAfterRetry { .. } => 1,
-        Validity::Repaired { .. } => 2,
+        // `Invalid` is only in rejected cases (no round): see `llm_validity`.
+        Validity::Repaired { .. } | Validity::Invalid { .. } => 2,
     }
 }
 

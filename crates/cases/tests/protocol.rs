@@ -121,7 +121,7 @@ fn same_attempts_same_window_and_honest_baselines() {
             ReasonOptions { t0: scene.frames[0].timestamp_s + t0, behavior: Some(b), seed, ..ReasonOptions::default() };
         match reason::reason(scene, &o, Agent::Random).unwrap() {
             Outcome::Plan { plan, .. } => plan,
-            Outcome::NoFeasible { reason } => panic!("{reason}"),
+            Outcome::NoFeasible { reason } | Outcome::Rejected { reason, .. } => panic!("{reason}"),
         }
     };
     let b = Behavior::BlindSpotAppearance;

@@ -25,6 +25,12 @@ pub struct CaseRequest {
     pub agent: AgentName,
     /// Only this track may be the adversary.
     pub adversary: Option<String>,
+    /// Only this collision zone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zone: Option<scene::Zone>,
+    /// This TTC (s) instead of the behaviour's range.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ttc_s: Option<f64>,
     pub seed: u64,
     /// Seeds tried at each t0 (`seed`, `seed + 1`, ...): the planner's candidate order and the
     /// LLM's sampling depend on it.
@@ -37,7 +43,7 @@ pub struct CaseRequest {
 pub struct Attempt {
     pub t0_s: f64,
     pub seed: u64,
-    /// `done`, `no_feasible` or `failed`.
+    /// `done`, `no_feasible`, `failed` or `rejected` (an LLM reply stayed invalid, no repair).
     pub status: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub detail: Option<String>,
@@ -73,6 +79,7 @@ fn attempt_of(r: &CaseResult) -> Attempt {
         Status::Failed { stage, reason } => {
             Attempt { status: "failed".into(), detail: Some(format!("{stage}: {reason}")), ..base }
         }
+        Status::Rejected { reason, .. } => Attempt { status: "rejected".into(), detail: Some(reason.clone()), ..base },
         Status::Done { .. } => {
             let b = r.best().expect("a done case has rounds");
             let m = &b.metrics;
@@ -112,7 +119,12 @@ pub fn select_case_with(
         T0Choice::Search(spec) => spec.times(scene),
     };
     let cfg = CaseConfig {
-        reason: ReasonOptions { adversary: req.adversary.clone(), ..ReasonOptions::default() },
+        reason: ReasonOptions {
+            adversary: req.adversary.clone(),
+            zone: req.zone,
+            ttc_s: req.ttc_s,
+            ..ReasonOptions::default()
+        },
         rollout: sim::RolloutConfig::default(),
         refine_rounds: req.refine_rounds,
         simulate,

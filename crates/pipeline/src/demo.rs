@@ -240,6 +240,8 @@ pub fn run_demo_on<B: Backend + Clone>(
             behavior,
             agent: cfg.agent,
             adversary: None,
+            zone: None,
+            ttc_s: None,
             seed: cfg.seed,
             seeds_per_t0: 3,
             refine_rounds: 3,

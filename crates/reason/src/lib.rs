@@ -7,20 +7,24 @@ pub mod agents;
 pub mod backend;
 pub mod baselines;
 pub mod behavior;
+mod chat;
 pub mod clearance;
+pub mod constraints;
 pub mod from_rest;
+pub mod intent;
 pub mod planner;
 pub mod prompt;
 pub mod quintic;
 pub mod reply;
 pub mod summary;
 pub mod target;
+pub mod trajectory_agent;
 pub mod validate;
 pub mod world;
 
 use scene::glam::DVec2;
 use scene::plan::{Plan, PLAN_FORMAT};
-use scene::{Behavior, Scene, Waypoint, ZoneLayout};
+use scene::{Behavior, Scene, Waypoint, Zone, ZoneLayout};
 use serde::{Deserialize, Serialize};
 use validate::ZoneDecision;
 use world::World;
@@ -44,9 +48,41 @@ pub struct ReasonOptions {
     pub temperature: f64,
     /// Outcome of a previous attempt, appended to the Zone agent's prompt (closed-loop refinement).
     pub feedback: Option<String>,
-    /// Only this track may be the adversary (`carla-gs run --adversary`); the agents see no
-    /// other candidate vehicle (every actor still counts for contacts in the simulator).
+    /// Only this track may be the adversary (`--adversary`); the agents see no other candidate
+    /// vehicle (every actor still counts for contacts in the simulator).
     pub adversary: Option<String>,
+    /// Only this collision zone (`--zone`).
+    pub zone: Option<Zone>,
+    /// This TTC (s, put on the dt grid) instead of the behaviour's range (`--ttc`).
+    pub ttc_s: Option<f64>,
+    /// Who writes the numbers: see [`Protocol`].
+    pub protocol: Protocol,
+    /// What happens to a reply still invalid after the re-prompts: see [`Repair`].
+    pub repair: Repair,
+}
+
+/// How the LLM agents work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Protocol {
+    /// Ours: small models ([`backend::Capability::LabelsOnly`]) only choose among code-checked
+    /// options; models that write numbers write the TTC and world-frame waypoints.
+    #[default]
+    Ours,
+    /// The paper's: every model writes the Zone agent's TTC and the Trajectory agent's timed
+    /// waypoints itself, in the ego frame at t0 (x forward, y left, t in seconds after t0).
+    Paper,
+}
+
+/// What is done with a reply still invalid after `max_retries` re-prompts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Repair {
+    /// The planner replaces it (counted as `repaired`).
+    #[default]
+    Planner,
+    /// Nothing: the run ends with [`Outcome::Rejected`] (counted as `invalid`).
+    None,
 }
 
 impl Default for ReasonOptions {
@@ -63,17 +99,30 @@ impl Default for ReasonOptions {
             temperature: 0.7,
             feedback: None,
             adversary: None,
+            zone: None,
+            ttc_s: None,
+            protocol: Protocol::Ours,
+            repair: Repair::Planner,
         }
     }
 }
 
-/// How an agent's reply became valid.
+/// How an agent's reply became valid (the paper counts `RawValid` only: valid at the first try).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum Validity {
     RawValid,
-    ValidAfterRetry { retries: usize },
-    Repaired { violations: Vec<String> },
+    ValidAfterRetry {
+        retries: usize,
+    },
+    Repaired {
+        violations: Vec<String>,
+    },
+    /// Still invalid after the re-prompts and no repair asked ([`Repair::None`]); only in
+    /// [`Outcome::Rejected`].
+    Invalid {
+        violations: Vec<String>,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -91,6 +140,13 @@ pub enum Outcome {
     },
     /// No vehicle can perform the behaviour here (a result, not an error).
     NoFeasible {
+        reason: String,
+    },
+    /// An agent's reply stayed invalid after the re-prompts and no repair was asked
+    /// ([`Repair::None`]): no plan. `stats` says which agent (its validity is `Invalid`); an agent
+    /// that never ran (the Trajectory agent after a rejected Zone reply) is `Invalid` too.
+    Rejected {
+        stats: ValidityStats,
         reason: String,
     },
 }
@@ -143,18 +199,18 @@ pub(crate) fn make_plan(
 
 /// Runs an agent at t0. Every plan returned passes `Plan::validate`.
 pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome, ReasonError> {
-    if !(o.dt > 0.0 && o.dt.is_finite() && o.radius > 0.0 && o.history_s >= 0.0) {
+    if !(o.dt > 0.0 && o.dt.is_finite() && o.radius > 0.0 && o.history_s >= 0.0)
+        || o.ttc_s.is_some_and(|t| !(t.is_finite() && t > 0.0))
+    {
         return Err(ReasonError::Options(format!(
-            "need dt > 0, radius > 0, history >= 0 (got {}, {}, {})",
-            o.dt, o.radius, o.history_s
+            "need dt > 0, radius > 0, history >= 0, TTC > 0 (got {}, {}, {}, {:?})",
+            o.dt, o.radius, o.history_s, o.ttc_s
         )));
     }
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
     let world = World::for_options(scene, o).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
-    if let (Some(id), true) = (&o.adversary, world.vehicles.is_empty()) {
-        return Ok(Outcome::NoFeasible {
-            reason: format!("track `{id}` is not a vehicle within {:.0} m of the ego at t0 = {:.2} s", o.radius, o.t0),
-        });
+    if let Err(reason) = constraints::check(scene, &world, o) {
+        return Ok(Outcome::NoFeasible { reason });
     }
     let out = match agent {
         Agent::Planner => agents::run_planner(&world, o),

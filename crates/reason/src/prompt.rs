@@ -1,5 +1,7 @@
 //! Prompt texts of the Zone and Trajectory agents. The behaviour the user asked for is stated
-//! in every prompt (the original ignored it); `auto` lists the whole library.
+//! in every prompt (the original ignored it); `auto` lists the whole library. The user's other
+//! constraints (adversary, zone, TTC) are stated too. The paper protocol's Trajectory agent
+//! works in the ego frame at t0 ([`paper_trajectory_user`]).
 
 use crate::behavior::spec;
 use crate::validate::{MAX_ACCEL, MAX_SPEED};
@@ -68,6 +70,7 @@ pub fn zone_user(
     behavior: Option<Behavior>,
     summary: &str,
     feedback: Option<&str>,
+    req: &crate::validate::Requested,
 ) -> String {
     let mut s = format!(
         "{}\n{}\n{summary}\nThe log continues {:.1} s after t0, so ttc_s must be at most that.",
@@ -75,6 +78,10 @@ pub fn zone_user(
         zones_text(world, layout),
         world.horizon()
     );
+    if let Some(c) = constraints_text(req) {
+        s.push('\n');
+        s.push_str(&c);
+    }
     if let Some(f) = feedback {
         s.push_str("\nA previous attempt was executed in the physics simulator: ");
         s.push_str(f);
@@ -124,6 +131,78 @@ dt = {dt} s, TTC = {ttc:.2} s: write exactly {n} waypoints from t = {:.3} to t =
         world.t0 + ttc,
         world.t0,
         world.t0 + ttc
+    )
+}
+
+/// The user's fixed choices, as an instruction (`None`: nothing fixed beyond the behaviour).
+pub fn constraints_text(req: &crate::validate::Requested) -> Option<String> {
+    let mut parts = Vec::new();
+    if let Some(a) = req.adversary {
+        parts.push(format!("vehicle_id must be {a}"));
+    }
+    if let Some(z) = req.zone {
+        parts.push(format!("zone must be {}", z.as_str()));
+    }
+    if let Some(t) = req.ttc_s {
+        parts.push(format!("ttc_s must be {t}"));
+    }
+    (!parts.is_empty()).then(|| format!("The user requires: {}.", parts.join("; ")))
+}
+
+pub fn paper_trajectory_system() -> String {
+    format!(
+        "You are the Trajectory agent. Write the adversarial vehicle's future waypoints in the EGO frame at t0 (origin: the ego's centre at t0, \
+x forward, y left, metres; t in seconds after t0): a JSON object {{\"waypoints\": [{{\"t\": .., \"x\": .., \"y\": ..}}, ...]}}. \
+Rules: the first waypoint is (t = 0, the vehicle's position (x0, y0)), times step by exactly dt, the last waypoint is at t = TTC and equals the \
+collision target, speed <= {MAX_SPEED} m/s, |acceleration| <= {MAX_ACCEL} m/s^2, smooth motion consistent with the behaviour. No prose outside the JSON."
+    )
+}
+
+/// The paper's Trajectory agent input: the adversary's history, the ego's logged future, its start
+/// (x0, y0), the collision target, the behaviour and TTC, all in the ego frame at t0.
+#[allow(clippy::too_many_arguments)]
+pub fn paper_trajectory_user(
+    world: &World,
+    behavior: Behavior,
+    vehicle: &crate::world::Vehicle,
+    target: DVec2,
+    ttc: f64,
+    dt: f64,
+    history_s: f64,
+) -> String {
+    let n = (ttc / dt).round() as usize + 1;
+    let mut hist = String::new();
+    let steps = (history_s / 0.5).round() as i64;
+    for k in -steps..=0 {
+        let t = world.t0 + k as f64 * 0.5;
+        if let Some(kin) = crate::world::kin_at(&vehicle.run, t) {
+            let p = world.to_ego_now(kin.p);
+            let _ = write!(hist, " (t {:+.1}, x {:.2}, y {:.2}, v {:.1})", t - world.t0, p.x, p.y, kin.speed());
+        }
+    }
+    let mut fut = String::new();
+    let mut t = 0.5;
+    while t <= ttc + 1e-9 {
+        let p = world.to_ego_now(world.ego_pose(world.t0 + t).position());
+        let _ = write!(fut, " (t {t:.1}, x {:.2}, y {:.2})", p.x, p.y);
+        t += 0.5;
+    }
+    let p0 = world.to_ego_now(vehicle.now.p);
+    let v0 = world.to_ego_now(vehicle.now.p + vehicle.now.v) - p0;
+    let tl = world.to_ego_now(target);
+    format!(
+        "Behaviour: {} ({}).\nVehicle {} history (ego frame at t0):{hist}.\nEgo logged future:{fut}.\n\
+Vehicle start (x0, y0) = ({:.2}, {:.2}), velocity ({:.2}, {:.2}) m/s.\nCollision target (x, y) = ({:.2}, {:.2}) at t = TTC = {ttc:.2} s.\n\
+dt = {dt} s: write exactly {n} waypoints, t = 0, {dt}, ..., {ttc:.2}.",
+        behavior.as_str(),
+        spec(behavior).description,
+        vehicle.id,
+        p0.x,
+        p0.y,
+        v0.x,
+        v0.y,
+        tl.x,
+        tl.y,
     )
 }
 

@@ -33,7 +33,7 @@ fn slot(v: &Validity) -> usize {
     match v {
         Validity::RawValid => 0,
         Validity::ValidAfterRetry { .. } => 1,
-        Validity::Repaired { .. } => 2,
+        Validity::Repaired { .. } | Validity::Invalid { .. } => 2,
     }
 }
 
@@ -68,6 +68,7 @@ fn sweep(times: &[f64], only: Option<&str>) -> Option<Counts> {
                         assert!(!reason.is_empty());
                         c.no_feasible += 1;
                     }
+                    Outcome::Rejected { reason, .. } => panic!("repair is on: {reason}"),
                 }
             }
         }
@@ -100,7 +101,7 @@ fn local_agent_is_deterministic_given_the_seed() {
     };
     let run = |l: &mut Local| match reason(s, &o, Agent::Llm(l)).unwrap() {
         Outcome::Plan { plan, .. } => plan,
-        Outcome::NoFeasible { reason } => panic!("{reason}"),
+        Outcome::NoFeasible { reason } | Outcome::Rejected { reason, .. } => panic!("{reason}"),
     };
     let (a, b) = (run(&mut local), run(&mut local));
     assert_eq!(a, b);

@@ -48,6 +48,7 @@ fn planner_always_plans_or_says_why_not() {
                         none += 1;
                         row.push_str(" -");
                     }
+                    Outcome::Rejected { reason, .. } => panic!("the planner's plans are never rejected: {reason}"),
                 }
             }
             println!("{} {:<22}{row}", &scene.name[..4], b.as_str());

@@ -38,6 +38,10 @@ pub struct Args {
     #[arg(long)]
     no_plots: bool,
     #[command(flatten)]
+    constraints: super::constraints::ConstraintArgs,
+    #[command(flatten)]
+    protocol: super::constraints::ProtocolArgs,
+    #[command(flatten)]
     llm: super::llm::LlmArgs,
     #[command(flatten)]
     physics: super::backend::BackendArgs,
@@ -65,7 +69,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         out: a.out.clone(),
         plots: !a.no_plots,
         case: CaseConfig {
-            reason: ReasonOptions::default(),
+            reason: a.protocol.apply(a.constraints.apply(ReasonOptions::default())?),
             rollout: sim::RolloutConfig::default(),
             refine_rounds: a.refine_rounds,
             simulate: a.physics.simulate_fn()?,
@@ -88,7 +92,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     pb.finish_and_clear();
     println!("{}", cases::summary_markdown(&report));
     println!(
-        "wrote {}/summary.md, table1.{{md,csv}}, table1_paired.{{md,csv}}, why_no_plan.md, table2.{{md,csv}}, report.json and cases/",
+        "wrote {}/summary.md, table1.{{md,csv}}, table1_paired.{{md,csv}}, why_no_plan.md, table2.{{md,csv}}, table_llm_validity.{{md,csv}} (LLM agents), report.json and cases/",
         a.out.display()
     );
     Ok(())

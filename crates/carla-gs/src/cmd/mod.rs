@@ -1,6 +1,7 @@
 //! One module per subcommand: argument struct plus a `run` that calls library crates.
 pub mod asset;
 pub mod backend;
+pub mod constraints;
 pub mod demo;
 pub mod eval_cases;
 pub mod export_xodr;

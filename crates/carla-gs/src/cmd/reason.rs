@@ -1,4 +1,6 @@
-//! `carla-gs reason <scene_dir> --t0 <s> --behavior <b|auto> --agent <...> --out scenario.json`
+//! `carla-gs reason <scene_dir> --t0 <s> --behavior <b|auto> --agent <...> [--adversary <track>]
+//! [--zone <z>] [--ttc <s>] [--protocol ours|paper] [--repair none|planner] --out scenario.json`
+use super::constraints::validity_text;
 use anyhow::Context;
 use reason::{Agent, Outcome, ReasonOptions};
 use std::path::PathBuf;
@@ -54,6 +56,18 @@ pub struct Args {
     retries: usize,
     #[arg(long, default_value_t = 0.7)]
     temperature: f64,
+    /// A sentence describing the corner case ("the van two cars ahead brakes hard"): an LLM agent
+    /// reads it as a behaviour, an adversary, a zone and a TTC (shown before planning); explicit
+    /// --behavior, --adversary, --zone and --ttc take precedence.
+    #[arg(long)]
+    describe: Option<String>,
+    /// The LLM that reads --describe (default: the --agent's if it is an LLM, else local).
+    #[arg(long, value_enum)]
+    describe_with: Option<AgentKind>,
+    #[command(flatten)]
+    constraints: super::constraints::ConstraintArgs,
+    #[command(flatten)]
+    protocol: super::constraints::ProtocolArgs,
     #[command(flatten)]
     llm: super::llm::LlmArgs,
 }
@@ -63,6 +77,39 @@ pub fn parse_behavior(s: &str) -> anyhow::Result<Option<scene::Behavior>> {
         return Ok(None);
     }
     s.parse().map(Some).map_err(|e: String| anyhow::anyhow!("--behavior: {e}, or auto"))
+}
+
+/// Reads `--describe` with an LLM, prints the reading, and returns `o` with it (explicit flags win).
+fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str) -> anyhow::Result<ReasonOptions> {
+    let kind =
+        a.describe_with.unwrap_or(if a.agent == AgentKind::Openai { AgentKind::Openai } else { AgentKind::Local });
+    let mut b = match kind {
+        AgentKind::Openai => a.llm.openai()?,
+        AgentKind::Local => a.llm.local()?,
+        other => anyhow::bail!("--describe-with: {other:?} is not an LLM (local or openai)"),
+    };
+    match reason::intent::describe(scene, &o, text, b.as_mut()).context("reading --describe failed")? {
+        Err(v) => {
+            let why: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            anyhow::bail!(
+                "--describe: {} could not read \"{text}\" as a request after {} re-prompt(s): {}",
+                b.name(),
+                o.max_retries,
+                why.join("; ")
+            )
+        }
+        Ok((intent, summary)) => {
+            println!("read \"{text}\" ({}, {}) as: {summary}", b.name(), validity_text(&intent.validity));
+            let read = intent.apply(&o);
+            Ok(ReasonOptions {
+                behavior: o.behavior.or(read.behavior),
+                adversary: o.adversary.clone().or(read.adversary),
+                zone: o.zone.or(read.zone),
+                ttc_s: o.ttc_s.or(read.ttc_s),
+                ..o
+            })
+        }
+    }
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -78,6 +125,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         temperature: a.temperature,
         ..ReasonOptions::default()
     };
+    let mut options = a.protocol.apply(a.constraints.apply(options)?);
+    if let Some(text) = &a.describe {
+        options = read_description(&a, &scene, options, text)?;
+    }
     let mut backend: Box<dyn reason::backend::Backend> = match a.agent {
         AgentKind::Openai => a.llm.openai()?,
         AgentKind::Local => a.llm.local()?,
@@ -97,6 +148,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             println!("no feasible vehicle for this behaviour at t0 = {:.2} s: {reason}", a.t0);
             Ok(())
         }
+        Outcome::Rejected { stats, reason } => {
+            println!("no plan (--repair none): {reason}");
+            println!(
+                "validity: zone agent {}; trajectory agent {}",
+                validity_text(&stats.zone),
+                validity_text(&stats.trajectory)
+            );
+            Ok(())
+        }
         Outcome::Plan { plan, stats } => {
             scene::format::write_json_pretty(&a.out, &plan)?;
             println!(
@@ -110,7 +170,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
             println!("reasoning: {}", plan.reasoning);
             if let Some(s) = stats {
-                println!("validity: zone {:?}, trajectory {:?}", s.zone, s.trajectory);
+                println!(
+                    "validity: zone agent {}; trajectory agent {}",
+                    validity_text(&s.zone),
+                    validity_text(&s.trajectory)
+                );
             }
             println!("wrote {} ({} waypoints)", a.out.display(), plan.waypoints.len());
             Ok(())

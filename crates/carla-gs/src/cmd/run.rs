@@ -59,9 +59,8 @@ pub struct RunArgs {
     /// planner, local, openai, rule or random.
     #[arg(long, default_value = "planner")]
     agent: String,
-    /// Only this track may be the adversary.
-    #[arg(long)]
-    adversary: Option<String>,
+    #[command(flatten)]
+    constraints: super::constraints::ConstraintArgs,
     /// Analysis time (s from the first frame); default: search every 0.5 s for the first
     /// physically valid, successful case.
     #[arg(long)]
@@ -94,7 +93,9 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let req = CaseRequest {
         behavior,
         agent,
-        adversary: a.adversary.clone(),
+        adversary: a.constraints.adversary.clone(),
+        zone: a.constraints.zone()?,
+        ttc_s: a.constraints.ttc,
         seed: a.seed,
         seeds_per_t0: a.seeds_per_t0,
         refine_rounds: a.refine_rounds,

@@ -1,0 +1,61 @@
+//! `carla-gs reason` with the user's constraints on the shared WOMD scene (stationary ego,
+//! t0 = 2 s): an impossible request names the constraint, a possible one plans that vehicle in
+//! that zone at that TTC (on the dt grid), a bad flag is an error naming the flag. Outputs go to a
+//! temporary directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn carla_gs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The stationary-ego WOMD scenario ingested into `tmp`.
+fn scene_dir(tmp: &Path) -> Option<PathBuf> {
+    for name in ["motion_data_one_scenario.tfrecord", "womd_scenario_input.tfrecord"] {
+        let input = ingest::shared::waymo_file(name)?;
+        let dir = tmp.join(name);
+        let out = carla_gs(&["ingest", s(&input), "--out", s(&dir)]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        if scene::load_scene(&dir).unwrap().name == "637f20cafde22ff8" {
+            return Some(dir);
+        }
+    }
+    panic!("the stationary-ego scenario is in neither shared file")
+}
+
+#[test]
+fn reason_with_adversary_zone_and_ttc() {
+    let tmp = tempfile::tempdir().unwrap();
+    let Some(dir) = scene_dir(tmp.path()) else { return };
+    let plan_path = tmp.path().join("plan.json");
+    let base = ["reason", s(&dir), "--t0", "2", "--out", s(&plan_path), "--adversary", "1588"];
+    let run = |extra: &[&str]| {
+        let out = carla_gs(&[&base[..], extra].concat());
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (ok, stdout, stderr) = run(&["--zone", "left", "--behavior", "sudden_cut_in"]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout
+            .contains("track 1588 cannot perform sudden_cut_in into zone left: sudden_cut_in never aims at zone left"),
+        "{stdout}"
+    );
+    assert!(!plan_path.exists());
+    let (ok, stdout, stderr) = run(&["--zone", "left", "--behavior", "side_pass", "--ttc", "3.04"]);
+    assert!(ok && stdout.contains("vehicle 1588 -> left zone, side_pass, TTC 3.00 s"), "{stdout}{stderr}");
+    let plan: scene::Plan = scene::format::read_json(&plan_path).unwrap();
+    assert_eq!((plan.adversary_track.as_str(), plan.target_zone), ("1588", scene::Zone::Left));
+    let (ok, _, stderr) = run(&["--zone", "up", "--behavior", "side_pass"]);
+    assert!(!ok && stderr.contains("--zone"), "{stderr}");
+    let (ok, _, stderr) = run(&["--ttc", "-1", "--behavior", "side_pass"]);
+    assert!(!ok && stderr.contains("--ttc"), "{stderr}");
+}
