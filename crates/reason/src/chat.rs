@@ -13,6 +13,19 @@ pub(crate) struct Chat<'b> {
     pub seed: u64,
 }
 
+/// Longest earlier reply kept whole in a small model's conversation (characters): its context
+/// (4096 tokens) cannot hold the scene and three full waypoint lists; the violations say what
+/// was wrong.
+const SMALL_ECHO_CHARS: usize = 600;
+
+/// `reply` as the conversation keeps it: whole, or cut for a small model's context.
+fn echo(reply: String, small: bool) -> String {
+    match reply.char_indices().nth(SMALL_ECHO_CHARS) {
+        Some((i, _)) if small => format!("{} ... (cut)", &reply[..i]),
+        _ => reply,
+    }
+}
+
 /// What one agent's conversation ended with: a checked value, or the last violations.
 pub(crate) type Asked<T> = Result<(T, Validity), Vec<Violation>>;
 
@@ -53,7 +66,8 @@ impl Chat<'_> {
                         "{name}: reply rejected: {}",
                         violations.iter().map(|v| v.to_string()).collect::<Vec<_>>().join("; ")
                     );
-                    messages.push(Message { role: Role::Assistant, content: reply });
+                    let small = self.backend.capability() == crate::backend::Capability::LabelsOnly;
+                    messages.push(Message { role: Role::Assistant, content: echo(reply, small) });
                     messages.push(Message { role: Role::User, content: violations_text(&violations) });
                     last = violations;
                 }

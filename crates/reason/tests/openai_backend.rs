@@ -350,3 +350,21 @@ fn the_api_key_never_reaches_logs_or_errors() {
     }
     assert!(!logs.contains(SECRET), "the key leaked into the logs");
 }
+
+#[test]
+fn llama_cpp_python_rejection_of_json_schema_drops_response_format() {
+    std::env::set_var("CARLA_GS_TEST_KEY_8", "k");
+    // What llama-cpp-python 0.3.36's server answered (HTTP 500, pydantic validation error).
+    let err = r#"{"error":{"message":"1 validation error:\n  {'type': 'literal_error', 'loc': ('body', 'response_format', 'type'), 'msg': \"Input should be 'text' or 'json_object'\", 'input': 'json_schema'}","type":"internal_server_error","param":null,"code":null}}"#;
+    let (url, seen) = serve_with(move |body| {
+        if body.get("response_format").is_some() {
+            (500, err.to_string())
+        } else {
+            (200, chat_reply("{}"))
+        }
+    });
+    let mut b = OpenAi::new(config(url, "CARLA_GS_TEST_KEY_8")).unwrap();
+    assert_eq!(b.complete(&request()).unwrap(), "{}");
+    assert_eq!(b.dropped_params(), vec!["response_format"]);
+    assert_eq!(seen.lock().unwrap().len(), 2, "no backoff retries of the 500");
+}

@@ -8,7 +8,9 @@
 //!   `seed`, `response_format`, the token limit) are dropped: on an HTTP 400 whose OpenAI-style
 //!   error names one of them (`error.param`, else the message), the request is sent again once
 //!   without it (`max_completion_tokens` becomes `max_tokens` for older servers), and later
-//!   requests leave it out too. The dropped parameters are logged by name.
+//!   requests leave it out too. The dropped parameters are logged by name. llama-cpp-python's
+//!   server answers `response_format: json_schema` with an HTTP 500 validation error naming it:
+//!   that is recognised too.
 //! * A reply whose `choices[0].message.content` is null or empty (a reasoning model that spent its
 //!   budget, `finish_reason: length`, or a refusal) is asked again, with twice the token budget
 //!   after a `length` finish, up to `retries` times.
@@ -72,7 +74,12 @@ pub fn rejected_param(body: &str) -> Option<&'static str> {
         }
     }
     let msg = err["message"].as_str().or_else(|| err.as_str())?;
-    let unsupported = msg.to_ascii_lowercase().contains("unsupported") || msg.contains("not supported");
+    let lower = msg.to_ascii_lowercase();
+    // OpenAI: "Unsupported parameter/value"; llama-cpp-python (pydantic, as HTTP 500):
+    // "validation error ... 'loc': ('body', 'response_format', 'type') ... Input should be ...".
+    let unsupported = lower.contains("unsupported")
+        || lower.contains("not supported")
+        || (lower.contains("validation error") && lower.contains("'body'"));
     if !unsupported {
         return None;
     }
@@ -126,7 +133,8 @@ impl OpenAi {
         BackendError::Failed { backend: self.name(), message }
     }
 
-    /// One POST with transport/429/5xx retries; `Ok(Err(body))` is an HTTP 400 to inspect.
+    /// One POST with transport/429/5xx retries; `Ok(Err(body))` is an HTTP 400 (or an error of any
+    /// status naming a parameter it rejects) to inspect.
     fn post(&self, url: &str, body: &Value) -> Result<Result<Value, String>, BackendError> {
         let mut last = String::new();
         for attempt in 0..=self.cfg.retries {
@@ -142,7 +150,12 @@ impl OpenAi {
                     return resp.into_json().map(Ok).map_err(|e| self.fail(format!("reply is not JSON: {e}")));
                 }
                 Err(ureq::Error::Status(code, resp)) if code == 429 || code >= 500 => {
-                    last = format!("HTTP {code}: {}", resp.into_string().unwrap_or_default());
+                    let body = resp.into_string().unwrap_or_default();
+                    // Some servers (llama-cpp-python) answer a rejected parameter with a 500.
+                    if rejected_param(&body).is_some_and(|p| !self.dropped.contains(p)) {
+                        return Ok(Err(body));
+                    }
+                    last = format!("HTTP {code}: {body}");
                     tracing::warn!("{}: attempt {} failed: {last}", self.name(), attempt + 1);
                 }
                 Err(ureq::Error::Status(400, resp)) => return Ok(Err(resp.into_string().unwrap_or_default())),
