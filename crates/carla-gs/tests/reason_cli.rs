@@ -56,6 +56,6 @@ fn reason_with_adversary_zone_and_ttc() {
     assert_eq!((plan.adversary_track.as_str(), plan.target_zone), ("1588", scene::Zone::Left));
     let (ok, _, stderr) = run(&["--zone", "up", "--behavior", "side_pass"]);
     assert!(!ok && stderr.contains("--zone"), "{stderr}");
-    let (ok, _, stderr) = run(&["--ttc", "-1", "--behavior", "side_pass"]);
+    let (ok, _, stderr) = run(&["--ttc=-1", "--behavior", "side_pass"]);
     assert!(!ok && stderr.contains("--ttc"), "{stderr}");
 }

@@ -139,21 +139,22 @@ pub fn run_demo_on<B: Backend + Clone>(
     std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     let mut stages = Stages { timings: vec![], progress };
     let scene_dir = out.join("scene");
+    let synth_cfg = synth::SynthConfig {
+        frames: cfg.frames,
+        cameras: cfg.cameras,
+        width: cfg.width,
+        height: cfg.height,
+        seed: cfg.scene_seed,
+        force: true,
+        preview: false,
+    };
+
     let scene_key = json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
         "height": cfg.height, "seed": cfg.scene_seed}, "version": 1});
     stages.cached("synthesise scene", &scene_dir, &scene_key, || {
-        let sc = synth::SynthConfig {
-            frames: cfg.frames,
-            cameras: cfg.cameras,
-            width: cfg.width,
-            height: cfg.height,
-            seed: cfg.scene_seed,
-            force: true,
-            preview: false,
-        };
         let pb = progress.bar();
         pb.set_length(cfg.frames as u64);
-        synth::synthesize(&sc, &scene_dir, &mut |done, _| pb.set_position(done as u64))?;
+        synth::synthesize(&synth_cfg, &scene_dir, &mut |done, _| pb.set_position(done as u64))?;
         pb.finish_and_clear();
         Ok(())
     })?;
@@ -268,15 +269,6 @@ pub fn run_demo_on<B: Backend + Clone>(
     let case_dir = first_case.map(|(b, _)| out.join("cases").join(b.as_str()));
     let replace_dir = out.join("replacement");
     let replace_key = json!({"model": train_key, "track": track, "case": case_dir, "version": 2});
-    let synth_cfg = synth::SynthConfig {
-        frames: cfg.frames,
-        cameras: cfg.cameras,
-        width: cfg.width,
-        height: cfg.height,
-        seed: cfg.scene_seed,
-        force: true,
-        preview: false,
-    };
     stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
         let original = trained.as_ref().unwrap_or(&model);
         let case = case_dir.as_deref();

@@ -6,6 +6,7 @@
 //! The box hull is larger than the vehicle's silhouette (wheels, cabin, rounded corners), so a
 //! correct placement reads about 0.8 to 0.95, a placement off by a vehicle width well below 0.5.
 
+use crate::asset::align::convex_hull;
 use crate::backproject::Backprojection;
 use crate::canvas::Canvas;
 use crate::RenderError;
@@ -34,27 +35,6 @@ pub struct Placement {
     pub offset_from_log_m: Option<f64>,
 }
 
-/// Andrew's monotone chain: the convex hull, counter-clockwise in image axes' sense of cross.
-fn convex_hull(mut p: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    let mut hull: Vec<[f64; 2]> = Vec::with_capacity(2 * p.len());
-    for pass in 0..2 {
-        let start = hull.len();
-        for &q in p.iter() {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-        if pass == 0 {
-            p.reverse();
-        }
-    }
-    hull
-}
-
 /// The pixels (row-major, `width x height`) whose centres fall inside the projected box, or
 /// `None` when a corner is behind the camera's near plane.
 pub fn box_mask(cam: &splat::Camera, pose: &BoxPose, size_lwh: [f64; 3]) -> Option<Vec<bool>> {
@@ -69,7 +49,7 @@ pub fn box_mask(cam: &splat::Camera, pose: &BoxPose, size_lwh: [f64; 3]) -> Opti
         }
         pts.push([cam.fx * p[0] / p[2] + cam.cx, cam.fy * p[1] / p[2] + cam.cy]);
     }
-    let hull = convex_hull(pts);
+    let hull = convex_hull(&pts);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let inside = |x: f64, y: f64| {
         hull.len() >= 3
@@ -202,7 +182,7 @@ mod tests {
 
     #[test]
     fn hull_of_a_square_with_an_inner_point() {
-        let h = convex_hull(vec![[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [2.0, 2.0], [0.0, 2.0]]);
+        let h = convex_hull(&[[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [2.0, 2.0], [0.0, 2.0]]);
         assert_eq!(h.len(), 4, "{h:?}");
         assert!(!h.contains(&[1.0, 1.0]));
     }

@@ -6,8 +6,8 @@
 //! anisotropic scale, adding `log(scale)` to the log-scales is only right for Gaussians whose
 //! axes are the scale's axes, so `Σ'` is formed in full and re-factored: its eigenvectors give
 //! the new rotation (made proper, det +1) and the square roots of its eigenvalues the new scales.
-//! The symmetric 3x3 eigenproblem is solved by cyclic Jacobi rotations (glam has no eigensolver
-//! and none of our crates depends on a linear-algebra crate).
+//! The symmetric 3x3 eigenproblem is `recon::surface`'s cyclic Jacobi solver (glam has none);
+//! the matrix and quaternion algebra is glam's, behind our row-major `[[f64; 3]; 3]`.
 //!
 //! Colour: spherical-harmonic bands 1 to 3 are rotated with the rotation part of the map (the
 //! map with its scale taken out, `R_yaw` for the asset alignment) through `recon::sh_rotate`,
@@ -15,131 +15,71 @@
 //! that an anisotropic scale makes is not modelled.
 
 use recon::sh_rotate::ShRotation;
+use recon::surface::symmetric_eigen;
+use scene::glam::{DMat3, DQuat, DVec3};
 use splat::Gaussians;
 
 pub type Mat3 = [[f64; 3]; 3];
 
+/// Our row-major `m[row][col]` as a glam matrix.
+fn to_glam(a: &Mat3) -> DMat3 {
+    DMat3::from_cols_array_2d(a).transpose()
+}
+
+fn from_glam(m: DMat3) -> Mat3 {
+    m.transpose().to_cols_array_2d()
+}
+
 pub fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+    from_glam(to_glam(a) * to_glam(b))
 }
 
 pub fn transpose(a: &Mat3) -> Mat3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
+    from_glam(to_glam(a).transpose())
 }
 
 pub fn mat_vec(a: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| (0..3).map(|k| a[i][k] * v[k]).sum())
+    (to_glam(a) * DVec3::from(v)).to_array()
 }
 
 pub fn diag(d: [f64; 3]) -> Mat3 {
-    [[d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]]
+    from_glam(DMat3::from_diagonal(DVec3::from(d)))
 }
 
 /// Rotation about +z by `yaw` (radians).
 pub fn yaw_matrix(yaw: f64) -> Mat3 {
-    let (s, c) = yaw.sin_cos();
-    [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-}
-
-fn det(a: &Mat3) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    from_glam(DMat3::from_rotation_z(yaw))
 }
 
 /// Rotation matrix of a quaternion (w, x, y, z), normalised first.
 pub fn quat_to_matrix(q: [f64; 4]) -> Mat3 {
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
-    let [w, x, y, z] = q.map(|v| v / n);
-    [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
-    ]
+    let [w, x, y, z] = q;
+    from_glam(DMat3::from_quat(DQuat::from_xyzw(x, y, z, w).normalize()))
 }
 
-/// Unit quaternion (w, x, y, z) of a proper rotation matrix (Shepperd's method), `w >= 0`.
+/// Unit quaternion (w, x, y, z) of a proper rotation matrix, `w >= 0`.
 pub fn matrix_to_quat(r: &Mat3) -> [f64; 4] {
-    let tr = r[0][0] + r[1][1] + r[2][2];
-    let q = if tr > 0.0 {
-        let s = (tr + 1.0).sqrt() * 2.0;
-        [0.25 * s, (r[2][1] - r[1][2]) / s, (r[0][2] - r[2][0]) / s, (r[1][0] - r[0][1]) / s]
-    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
-        let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
-        [(r[2][1] - r[1][2]) / s, 0.25 * s, (r[0][1] + r[1][0]) / s, (r[0][2] + r[2][0]) / s]
-    } else if r[1][1] > r[2][2] {
-        let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
-        [(r[0][2] - r[2][0]) / s, (r[0][1] + r[1][0]) / s, 0.25 * s, (r[1][2] + r[2][1]) / s]
-    } else {
-        let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
-        [(r[1][0] - r[0][1]) / s, (r[0][2] + r[2][0]) / s, (r[1][2] + r[2][1]) / s, 0.25 * s]
-    };
-    let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    q.map(|v| sign * v / n)
+    let q = DQuat::from_mat3(&to_glam(r)).normalize();
+    let q = if q.w < 0.0 { -q } else { q };
+    [q.w, q.x, q.y, q.z]
 }
 
 /// `Σ = R diag(exp(2 log_scale)) Rᵀ`.
 pub fn covariance(log_scale: [f64; 3], q: [f64; 4]) -> Mat3 {
-    let r = quat_to_matrix(q);
-    let s2 = log_scale.map(|l| (2.0 * l).exp());
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| r[i][k] * s2[k] * r[j][k]).sum()))
-}
-
-/// Eigenvalues and eigenvectors (the columns of the matrix) of a symmetric 3x3 matrix, by
-/// cyclic Jacobi rotations to round-off.
-pub fn sym_eigen(a: &Mat3) -> ([f64; 3], Mat3) {
-    let mut m = *a;
-    let mut v = diag([1.0; 3]);
-    let scale = m.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max).max(1e-300);
-    for _sweep in 0..50 {
-        let off = m[0][1].abs() + m[0][2].abs() + m[1][2].abs();
-        if off <= 1e-17 * scale {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if m[p][q].abs() <= 1e-300 {
-                continue;
-            }
-            // Rotation angle that zeroes m[p][q] (Numerical Recipes' stable form).
-            let theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            // m <- Jᵀ m J, v <- v J with J the (p, q) Givens rotation.
-            for row in m.iter_mut() {
-                let (mkp, mkq) = (row[p], row[q]);
-                row[p] = c * mkp - s * mkq;
-                row[q] = s * mkp + c * mkq;
-            }
-            let (rp, rq) = (m[p], m[q]);
-            for k in 0..3 {
-                m[p][k] = c * rp[k] - s * rq[k];
-                m[q][k] = s * rp[k] + c * rq[k];
-            }
-            for row in v.iter_mut() {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
-    ([m[0][0], m[1][1], m[2][2]], v)
+    let r = to_glam(&quat_to_matrix(q));
+    let s2 = DVec3::from(log_scale.map(|l| (2.0 * l).exp()));
+    from_glam(r * DMat3::from_diagonal(s2) * r.transpose())
 }
 
 /// The smallest variance a re-factored Gaussian keeps (m²): a flat Gaussian stays renderable.
 pub const MIN_VARIANCE: f64 = 1e-20;
 
-/// Log-scales and unit quaternion of a covariance: its eigen-decomposition, with the
-/// eigenvector matrix made a proper rotation.
+/// Log-scales and unit quaternion of a covariance: its eigen-decomposition (the Jacobi solver of
+/// `recon::surface`, whose eigenvectors form a proper rotation).
 pub fn factor(cov: &Mat3) -> ([f64; 3], [f64; 4]) {
-    let (vals, mut vecs) = sym_eigen(cov);
-    if det(&vecs) < 0.0 {
-        for row in vecs.iter_mut() {
-            row[2] = -row[2];
-        }
-    }
-    (vals.map(|v| 0.5 * v.max(MIN_VARIANCE).ln()), matrix_to_quat(&vecs))
+    let (vals, vecs) = symmetric_eigen(*cov);
+    let r = from_glam(DMat3::from_cols(vecs[0], vecs[1], vecs[2]));
+    (vals.map(|v| 0.5 * v.max(MIN_VARIANCE).ln()), matrix_to_quat(&r))
 }
 
 /// Changes the SH degree of `g` to `degree`: higher bands dropped, missing ones zero.
