@@ -86,23 +86,25 @@ fn pct(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{:.1} %", 100.0 * v))
 }
 
+/// The counted columns, shared by the Markdown and CSV tables.
+fn counts(r: &LlmValidityRow) -> [String; 7] {
+    [
+        r.agent.map_or("", |a| a.as_str()).to_string(),
+        r.role.clone(),
+        r.replies.to_string(),
+        r.first_try.to_string(),
+        r.after_reprompt.to_string(),
+        r.repaired.to_string(),
+        r.invalid.to_string(),
+    ]
+}
+
 pub fn markdown(rows: &[LlmValidityRow]) -> String {
     let mut s = String::from("| LLM | agent | replies | valid at first try (paper) | valid after re-prompt | repaired by planner | invalid, no repair | first-try share | valid share (re-prompts) | usable share (repairs) |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-            r.agent.map_or("", |a| a.as_str()),
-            r.role,
-            r.replies,
-            r.first_try,
-            r.after_reprompt,
-            r.repaired,
-            r.invalid,
-            pct(r.first_try_share()),
-            pct(r.valid_share()),
-            pct(r.usable_share())
-        );
+        let shares = [pct(r.first_try_share()), pct(r.valid_share()), pct(r.usable_share())];
+        let _ =
+            writeln!(s, "| {} |", counts(r).iter().chain(&shares).map(String::as_str).collect::<Vec<_>>().join(" | "));
     }
     s
 }
@@ -110,17 +112,7 @@ pub fn markdown(rows: &[LlmValidityRow]) -> String {
 pub fn csv(rows: &[LlmValidityRow]) -> String {
     let mut s = String::from("llm,agent,replies,first_try,after_reprompt,repaired,invalid\n");
     for r in rows {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{}",
-            r.agent.map_or("", |a| a.as_str()),
-            r.role,
-            r.replies,
-            r.first_try,
-            r.after_reprompt,
-            r.repaired,
-            r.invalid
-        );
+        let _ = writeln!(s, "{}", counts(r).join(","));
     }
     s
 }

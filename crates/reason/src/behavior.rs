@@ -130,6 +130,17 @@ impl Relation {
     pub fn oncoming(&self) -> bool {
         self.rel_heading.abs() > 135f64.to_radians()
     }
+
+    /// "same direction", "oncoming" or "crossing", as the prompts describe a vehicle.
+    pub fn direction_label(&self) -> &'static str {
+        if self.same_direction() {
+            "same direction"
+        } else if self.oncoming() {
+            "oncoming"
+        } else {
+            "crossing"
+        }
+    }
 }
 
 /// Whether `v` can perform `b`, and the zones it can aim at; `Err` says why not.

@@ -86,13 +86,7 @@ pub fn who_is(world: &World, v: &crate::world::Vehicle) -> String {
     } else {
         String::new()
     };
-    let dir = if r.same_direction() {
-        "same direction"
-    } else if r.oncoming() {
-        "oncoming"
-    } else {
-        "crossing"
-    };
+    let dir = r.direction_label();
     format!(
         "{order}{:.0} m {}, {:.0} m {}, in {lane}, {dir}, {:.1} m/s{}, {} ({:.1} m long)",
         x.abs(),

@@ -110,13 +110,7 @@ pub fn describe(world: &World, behavior: Option<Behavior>, opts: &SummaryOptions
             l if l > 0 => format!("{l} lane(s) left"),
             l => format!("{} lane(s) right", -l),
         };
-        let dir = if r.same_direction() {
-            "same direction"
-        } else if r.oncoming() {
-            "oncoming"
-        } else {
-            "crossing"
-        };
+        let dir = r.direction_label();
         let _ = write!(s, "- id {}: {:.1} x {:.1} m, {lane_txt}, {dir}, history:", v.id, v.length, v.width);
         fmt_samples(&mut s, &history(world, &v.run, opts));
         s.push('\n');
