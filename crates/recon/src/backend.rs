@@ -27,6 +27,12 @@ pub trait Backend: Sync {
 
     /// Calls `f(index, half_extent_px)` for every Gaussian the last render drew, in a fixed order.
     fn for_each_drawn(&self, ctx: &Self::Context, f: &mut dyn FnMut(usize, f64));
+
+    /// The GPU behind this backend, where training can run entirely on the device
+    /// (`device::DeviceTrainer`); `None` trains on the host through `render`/`backward`.
+    fn gpu(&self) -> Option<std::sync::Arc<splat_cuda::Gpu>> {
+        None
+    }
 }
 
 /// The CPU reference rasterizer (f64, rayon over tiles).

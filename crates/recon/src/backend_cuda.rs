@@ -17,12 +17,15 @@ use std::sync::{Arc, Mutex};
 #[derive(Clone, Debug)]
 pub struct Cuda {
     gpu: Arc<Gpu>,
+    /// Train through `render`/`backward` with the loss and optimiser on the host (the
+    /// reference path; comparisons) instead of `device::DeviceTrainer`.
+    pub host_training: bool,
 }
 
 impl Cuda {
     /// Opens the GPU and compiles the kernels.
     pub fn new() -> Result<Cuda, CudaError> {
-        Ok(Cuda { gpu: Arc::new(Gpu::new()?) })
+        Ok(Cuda { gpu: Arc::new(Gpu::new()?), host_training: false })
     }
 
     /// Device name and architecture.
@@ -66,6 +69,10 @@ impl Backend for Cuda {
         if let Err(e) = self.gpu.backward_into(g, &mut sess, up, out) {
             fail("backward", e)
         }
+    }
+
+    fn gpu(&self) -> Option<Arc<Gpu>> {
+        (!self.host_training).then(|| self.gpu.clone())
     }
 
     fn for_each_drawn(&self, ctx: &CudaContext, f: &mut dyn FnMut(usize, f64)) {

@@ -47,7 +47,7 @@ pub fn actor_pose(model: &SceneModel, scene: &Scene, i: usize, t: f64) -> Option
     scene.track(&model.actors[i].track_id).and_then(|tr| box_pose_at(scene, tr, t))
 }
 
-fn yaw_rotation(h: f64) -> [[f64; 3]; 3] {
+pub(crate) fn yaw_rotation(h: f64) -> [[f64; 3]; 3] {
     [[h.cos(), -h.sin(), 0.0], [h.sin(), h.cos(), 0.0], [0.0, 0.0, 1.0]]
 }
 

@@ -22,6 +22,8 @@ pub enum ReconError {
     Camera { camera: String, detail: String },
     #[error("{0}")]
     Input(String),
+    #[error("CUDA device: {0}")]
+    Device(String),
 }
 
 pub fn io(file: &std::path::Path) -> impl FnOnce(std::io::Error) -> ReconError + '_ {

@@ -6,11 +6,12 @@ use crate::backend::Backend;
 use crate::checkpoint::{self, TrainState};
 use crate::config::TrainConfig;
 use crate::data::{load_views, PriorLoader, View};
+use crate::device::DeviceTrainer;
 use crate::error::ReconError;
 use crate::init::{initialise, scene_extent, InitReport};
 use crate::loss::LossParts;
 use crate::model_io::{load_config, write_model, ModelRecord};
-use crate::train::Trainer;
+use crate::train::{StepReport, Trainer};
 use indicatif::ProgressBar;
 use scene::Scene;
 use std::path::Path;
@@ -94,22 +95,28 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     // The config is written before the first step so an interrupted run can be resumed.
     let toml = toml::to_string(&cfg).map_err(|e| ReconError::Config(e.to_string()))?;
     scene::write_file_atomic(&req.out_dir.join("config.toml"), toml.as_bytes())?;
-    let mut trainer = Trainer::new(&scene, &views, cfg.clone(), backend, state, extent);
-    let start_it = trainer.state.next_iteration;
+    let mut trainer = match backend.gpu() {
+        Some(gpu) => {
+            tracing::info!(device = %gpu.describe(), "training on the device");
+            Runner::Device(Box::new(DeviceTrainer::new(&scene, &views, cfg.clone(), gpu, state, extent)?))
+        }
+        None => Runner::Host(Box::new(Trainer::new(&scene, &views, cfg.clone(), backend, state, extent))),
+    };
+    let start_it = trainer.next_iteration();
     let end = req.stop_after.map_or(cfg.iterations, |s| s.min(cfg.iterations));
     progress.set_length(cfg.iterations as u64);
     progress.set_position(start_it as u64);
     let t0 = Instant::now();
     let mut recent = std::collections::VecDeque::new();
     let mut last = LossParts::default();
-    while trainer.state.next_iteration < end {
-        let rep = trainer.step();
+    while trainer.next_iteration() < end {
+        let rep = trainer.step()?;
         last = rep.loss;
         recent.push_back(rep.psnr);
         if recent.len() > 100 {
             recent.pop_front();
         }
-        let n = trainer.state.next_iteration;
+        let n = trainer.next_iteration();
         if n.is_multiple_of(10) || n == end {
             progress.set_message(format!(
                 "loss {:.4} psnr {:.2} dB  {} gaussians",
@@ -121,26 +128,57 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
             tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
         }
         if cfg.checkpoint_interval > 0 && n.is_multiple_of(cfg.checkpoint_interval) && n < end {
-            checkpoint::save(&ckpt_path, &trainer.state)?;
+            checkpoint::save(&ckpt_path, trainer.state()?)?;
         }
     }
     let seconds = t0.elapsed().as_secs_f64();
-    checkpoint::save(&ckpt_path, &trainer.state)?;
-    let done = trainer.state.next_iteration;
+    let state = trainer.state()?;
+    checkpoint::save(&ckpt_path, state)?;
+    let done = state.next_iteration;
     let ran = done - start_it;
     record.iterations = done;
     record.train_seconds = seconds;
     record.iterations_per_second = ran as f64 / seconds.max(1e-9);
     record.last_loss = last;
-    write_model(req.out_dir, &trainer.state.model, &mut record, &cfg, init.as_ref())?;
+    write_model(req.out_dir, &state.model, &mut record, &cfg, init.as_ref())?;
     Ok(TrainSummary {
         iterations_done: done,
         seconds,
         iterations_per_second: record.iterations_per_second,
-        gaussians: trainer.state.model.gaussian_count(),
+        gaussians: state.model.gaussian_count(),
         last_loss: last,
         recent_psnr: recent.iter().sum::<f64>() / recent.len().max(1) as f64,
         views_train: views.iter().filter(|v| !v.held_out).count(),
         views_held_out: views.iter().filter(|v| v.held_out).count(),
     })
+}
+
+/// The loop's trainer: on the host (any backend) or entirely on the GPU.
+enum Runner<'s, B: Backend> {
+    Host(Box<Trainer<'s, B>>),
+    Device(Box<DeviceTrainer<'s>>),
+}
+
+impl<B: Backend> Runner<'_, B> {
+    fn next_iteration(&self) -> usize {
+        match self {
+            Runner::Host(t) => t.state.next_iteration,
+            Runner::Device(t) => t.next_iteration(),
+        }
+    }
+
+    fn step(&mut self) -> Result<StepReport, ReconError> {
+        match self {
+            Runner::Host(t) => Ok(t.step()),
+            Runner::Device(t) => t.step(),
+        }
+    }
+
+    /// The current state on the host (the device trainer copies it back first).
+    fn state(&mut self) -> Result<&TrainState, ReconError> {
+        match self {
+            Runner::Host(t) => Ok(&t.state),
+            Runner::Device(t) => t.sync_host(),
+        }
+    }
 }

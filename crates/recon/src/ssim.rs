@@ -15,7 +15,7 @@ const C1: f64 = 0.01 * 0.01;
 const C2: f64 = 0.03 * 0.03;
 const RADIUS: usize = 5;
 
-fn window() -> [f64; 2 * RADIUS + 1] {
+pub(crate) fn window() -> [f64; 2 * RADIUS + 1] {
     let mut w = std::array::from_fn(|i| {
         let d = i as f64 - RADIUS as f64;
         (-d * d / (2.0 * 1.5 * 1.5)).exp()

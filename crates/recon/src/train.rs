@@ -65,7 +65,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
         state: TrainState,
         extent: f64,
     ) -> Self {
-        let train_views = (0..views.len()).filter(|&i| !views[i].held_out).collect();
+        let train_views = train_views(views);
         Trainer {
             scene,
             views,
@@ -95,11 +95,13 @@ impl<'a, B: Backend> Trainer<'a, B> {
     }
 
     fn view_for(&self, it: usize) -> usize {
-        let n = self.train_views.len();
-        let epoch = (it / n) as u64;
-        let mut order: Vec<usize> = self.train_views.clone();
-        order.shuffle(&mut ChaCha8Rng::seed_from_u64(derive_seed(self.cfg.seed, 1, epoch)));
-        order[it % n]
+        view_for(self.cfg.seed, &self.train_views, it)
+    }
+
+    /// The per-model gradients (background, then actors) and the sky's of the last step, flattening
+    /// term included (parity tests).
+    pub fn last_gradients(&self) -> (&[Gaussians], &[f64]) {
+        (&self.grads, &self.sky_grad)
     }
 
     /// Runs iteration `state.next_iteration` and advances it.
@@ -182,53 +184,78 @@ impl<'a, B: Backend> Trainer<'a, B> {
         }
     }
 
-    /// The 3DGS schedule on 1-based iteration `n`.
     fn density_control(&mut self, n: usize) -> Option<Counts> {
-        let d = self.cfg.densify.clone();
-        let (from, until, reset) = self.cfg.densify_schedule();
-        if n >= until {
-            return None;
-        }
-        let mut out = None;
-        if n > from && n.is_multiple_of(d.interval) {
-            let grow = self.state.model.gaussian_count() < d.max_gaussians;
-            let prune_big = reset > 0 && n > reset;
-            let mut total = Counts::default();
-            let st = &mut self.state;
-            let boxes: Vec<Option<[f64; 3]>> =
-                std::iter::once(None).chain(st.model.actors.iter().map(|a| Some(a.size_lwh))).collect();
-            let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
-            for (i, g) in sets.into_iter().enumerate() {
-                let seed = derive_seed(self.cfg.seed, 2, (n * 1000 + i) as u64);
-                let c = densify_and_prune(
-                    g,
-                    &mut st.adam.m[i],
-                    &mut st.adam.v[i],
-                    &st.stats[i],
-                    &d,
-                    self.extent,
-                    grow,
-                    prune_big,
-                    boxes[i],
-                    seed,
-                );
-                total.cloned += c.cloned;
-                total.split += c.split;
-                total.pruned += c.pruned;
-            }
-            for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
-                s.grad_sum.clear();
-                s.seen.clear();
-                s.max_radius.clear();
-                s.fit(g.len());
-            }
-            out = Some(total);
-        }
-        if reset > 0 && n.is_multiple_of(reset) {
-            let st = &mut self.state;
-            let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
-            reset_opacity(&mut sets, &mut st.adam);
-        }
-        out
+        density_control(&mut self.state, &self.cfg, self.extent, n)
     }
+}
+
+/// The training views' indices (every view not held out).
+pub(crate) fn train_views(views: &[View]) -> Vec<usize> {
+    (0..views.len()).filter(|&i| !views[i].held_out).collect()
+}
+
+/// The view of iteration `it`: a seeded permutation of the training views per epoch.
+pub(crate) fn view_for(seed: u64, train_views: &[usize], it: usize) -> usize {
+    let n = train_views.len();
+    let epoch = (it / n) as u64;
+    let mut order: Vec<usize> = train_views.to_vec();
+    order.shuffle(&mut ChaCha8Rng::seed_from_u64(derive_seed(seed, 1, epoch)));
+    order[it % n]
+}
+
+/// Whether density control does anything on 1-based iteration `n` (so a device trainer knows
+/// when to bring the model to the host).
+pub(crate) fn density_due(cfg: &TrainConfig, n: usize) -> bool {
+    let (from, until, reset) = cfg.densify_schedule();
+    n < until && ((n > from && n.is_multiple_of(cfg.densify.interval)) || (reset > 0 && n.is_multiple_of(reset)))
+}
+
+/// The 3DGS schedule on 1-based iteration `n`.
+pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent: f64, n: usize) -> Option<Counts> {
+    let d = cfg.densify.clone();
+    let (from, until, reset) = cfg.densify_schedule();
+    if n >= until {
+        return None;
+    }
+    let mut out = None;
+    if n > from && n.is_multiple_of(d.interval) {
+        let grow = state.model.gaussian_count() < d.max_gaussians;
+        let prune_big = reset > 0 && n > reset;
+        let mut total = Counts::default();
+        let st = &mut *state;
+        let boxes: Vec<Option<[f64; 3]>> =
+            std::iter::once(None).chain(st.model.actors.iter().map(|a| Some(a.size_lwh))).collect();
+        let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
+        for (i, g) in sets.into_iter().enumerate() {
+            let seed = derive_seed(cfg.seed, 2, (n * 1000 + i) as u64);
+            let c = densify_and_prune(
+                g,
+                &mut st.adam.m[i],
+                &mut st.adam.v[i],
+                &st.stats[i],
+                &d,
+                extent,
+                grow,
+                prune_big,
+                boxes[i],
+                seed,
+            );
+            total.cloned += c.cloned;
+            total.split += c.split;
+            total.pruned += c.pruned;
+        }
+        for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
+            s.grad_sum.clear();
+            s.seen.clear();
+            s.max_radius.clear();
+            s.fit(g.len());
+        }
+        out = Some(total);
+    }
+    if reset > 0 && n.is_multiple_of(reset) {
+        let st = &mut *state;
+        let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
+        reset_opacity(&mut sets, &mut st.adam);
+    }
+    out
 }

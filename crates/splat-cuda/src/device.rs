@@ -39,7 +39,7 @@ pub(crate) struct Kernels {
 /// One GPU (device 0) with a stream and its compiled kernels.
 pub struct Gpu {
     pub(crate) stream: Arc<CudaStream>,
-    arch: String,
+    pub(crate) arch: String,
     name: String,
     kernels: Mutex<HashMap<usize, Arc<Kernels>>>,
 }
@@ -120,7 +120,7 @@ impl Gpu {
 }
 
 /// NVRTC: CUDA C source to a CUBIN for `arch` (e.g. "sm_90").
-fn compile(src: &str, arch: &str, nf: usize) -> Result<Vec<u8>, CudaError> {
+pub(crate) fn compile(src: &str, arch: &str, nf: usize) -> Result<Vec<u8>, CudaError> {
     let fail = |log: String| CudaError::Compile { arch: arch.to_string(), log };
     let csrc = CString::new(src).map_err(|_| fail("source holds a NUL byte".into()))?;
     let prog = nvrtc::create_program(&csrc, None).map_err(|e| fail(format!("{e:?}")))?;

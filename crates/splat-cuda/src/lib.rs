@@ -7,16 +7,21 @@
 //! `device` finds the GPU and compiles the kernels, `state` holds the device buffers one render
 //! keeps between iterations, `pipeline` launches the kernels (projection, key emission, radix
 //! sort, tile ranges, rasterisation, backward), `host` converts to and from the `splat` types and
-//! `inspect` reads back what a render decided (tile orders, per-pixel counts) for tests.
+//! `inspect` reads back what a render decided (tile orders, per-pixel counts) for tests, and
+//! `resident` hands the buffers to callers that keep their data on the device (the trainer).
 
 mod device;
 mod host;
 mod inspect;
 mod pipeline;
+mod resident;
 mod state;
 
+/// The CUDA bindings this crate is built on, for callers that write their own kernels.
+pub use cudarc;
 pub use device::Gpu;
 pub use inspect::{Decisions, DeviceProj};
+pub use resident::{GradientsOut, ImageIo, WorldInputs, PROJ_EXTENT, PROJ_FLOATS};
 pub use state::Session;
 
 /// Why the CUDA backend cannot run.

@@ -1,0 +1,438 @@
+// The trainer's per-iteration work on the device (recon::device): composing the scene at the
+// view's time, the view loss and its gradients with respect to the rendered channels, the way
+// back from world-frame gradients to each model's parameters (with the flattening term and the
+// density statistics), and Adam. Every formula mirrors the f64 host code it names, in f32.
+
+#define RADIUS 5
+#define SSIM_C1 0.0001f
+#define SSIM_C2 0.0009f
+
+// camera_from_world rotation (rows) and pinhole intrinsics.
+struct CamK {
+    float r[9];
+    float fx, fy, cx, cy;
+    int width, height;
+};
+
+// An actor's world_from_box at the view's time: yaw rotation R, translation t, the yaw
+// quaternion's (cos, sin) of half the angle, and the SH rotation M (16 x 16, row = world
+// coefficient, column = box coefficient).
+struct Xf {
+    float r[9];
+    float t[3];
+    float c, s;
+    float m[256];
+};
+
+struct Win {
+    float w[2 * RADIUS + 1];
+};
+
+__device__ __forceinline__ void warp_add(float* dst, float v) {
+    for (int off = 16; off > 0; off >>= 1) v += __shfl_down_sync(0xffffffffu, v, off);
+    if ((threadIdx.x & 31) == 0 && v != 0.0f) atomicAdd(dst, v);
+}
+
+// ---- compose (recon::compose::compose_into) ----
+
+extern "C" __global__ void compose_segment(int n, int src0, int dst0, int kc_full, int kc_act, int moved, Xf x,
+                                           const float* means, const float* log_scales, const float* rots,
+                                           const float* logits, const float* sh, float* w_means,
+                                           float* w_log_scales, float* w_rots, float* w_logits, float* w_sh) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= n) return;
+    size_t i = (size_t)src0 + j, o = (size_t)dst0 + j;
+    const float* m = means + 3 * i;
+    const float* q = rots + 4 * i;
+    const float* c = sh + i * kc_full * 3;
+    float* wc = w_sh + o * kc_act * 3;
+    for (int a = 0; a < 3; a++) w_log_scales[3 * o + a] = log_scales[3 * i + a];
+    w_logits[o] = logits[i];
+    if (!moved) {
+        for (int a = 0; a < 3; a++) w_means[3 * o + a] = m[a];
+        for (int a = 0; a < 4; a++) w_rots[4 * o + a] = q[a];
+        for (int k = 0; k < kc_act * 3; k++) wc[k] = c[k];
+        return;
+    }
+    for (int a = 0; a < 3; a++)
+        w_means[3 * o + a] = x.r[3 * a] * m[0] + x.r[3 * a + 1] * m[1] + x.r[3 * a + 2] * m[2] + x.t[a];
+    w_rots[4 * o] = x.c * q[0] - x.s * q[3];
+    w_rots[4 * o + 1] = x.c * q[1] - x.s * q[2];
+    w_rots[4 * o + 2] = x.c * q[2] + x.s * q[1];
+    w_rots[4 * o + 3] = x.c * q[3] + x.s * q[0];
+    for (int ko = 0; ko < kc_act; ko++)
+        for (int ch = 0; ch < 3; ch++) {
+            float acc = 0.0f;
+            for (int ki = 0; ki < kc_full; ki++) acc += x.m[ko * 16 + ki] * c[ki * 3 + ch];
+            wc[ko * 3 + ch] = acc;
+        }
+}
+
+// ---- back to the models (recon::compose::scatter_gradients), the flattening term and the
+// density statistics (recon::train::Trainer::step, recon::densify::Stats::record); counts[1] is
+// the number of Gaussians drawn, acc[6] collects the sum of their smallest scales ----
+
+extern "C" __global__ void scatter_segment(int n, int src0, int dst0, int kc_full, int kc_act, int moved, Xf x,
+                                           const float* gw_means, const float* gw_log_scales, const float* gw_rots,
+                                           const float* gw_logits, const float* gw_sh, const float* gw_mean2d,
+                                           const int* valid, const float* proj, int proj_floats, int proj_extent,
+                                           const float* log_scales, float flat_w, const unsigned* counts,
+                                           int densifying, float half_side, float* g_means, float* g_log_scales,
+                                           float* g_rots, float* g_logits, float* g_sh, float* grad_sum,
+                                           unsigned* seen, float* max_radius, float* acc) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    float e = 0.0f;
+    if (j < n) {
+        size_t i = (size_t)src0 + j, o = (size_t)dst0 + j;
+        for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gw_log_scales[3 * o + a];
+        g_logits[i] = gw_logits[o];
+        const float* gs = gw_sh + o * kc_act * 3;
+        float* d = g_sh + i * kc_full * 3;
+        const float* gm = gw_means + 3 * o;
+        const float* gq = gw_rots + 4 * o;
+        if (!moved) {
+            for (int a = 0; a < 3; a++) g_means[3 * i + a] = gm[a];
+            for (int a = 0; a < 4; a++) g_rots[4 * i + a] = gq[a];
+            for (int k = 0; k < kc_full * 3; k++) d[k] = k < kc_act * 3 ? gs[k] : 0.0f;
+        } else {
+            for (int a = 0; a < 3; a++)
+                g_means[3 * i + a] = x.r[a] * gm[0] + x.r[3 + a] * gm[1] + x.r[6 + a] * gm[2];
+            g_rots[4 * i] = x.c * gq[0] + x.s * gq[3];
+            g_rots[4 * i + 1] = x.c * gq[1] + x.s * gq[2];
+            g_rots[4 * i + 2] = -x.s * gq[1] + x.c * gq[2];
+            g_rots[4 * i + 3] = -x.s * gq[0] + x.c * gq[3];
+            for (int ki = 0; ki < kc_full; ki++)
+                for (int ch = 0; ch < 3; ch++) {
+                    float acc = 0.0f;
+                    for (int ko = 0; ko < kc_act; ko++) acc += x.m[ko * 16 + ki] * gs[ko * 3 + ch];
+                    d[ki * 3 + ch] = acc;
+                }
+        }
+        if (valid[o]) {
+            const float* ls = log_scales + 3 * i;
+            int k = 0;
+            float lmin = ls[0];
+            for (int a = 1; a < 3; a++)
+                if (ls[a] < lmin) { lmin = ls[a]; k = a; }
+            e = expf(lmin);
+            float nv = (float)max(counts[1], 1u);
+            g_log_scales[3 * i + k] += flat_w * e / nv;
+            if (densifying) {
+                grad_sum[i] += gw_mean2d[o] * half_side;
+                seen[i] += 1u;
+                const float* ext = proj + o * proj_floats + proj_extent;
+                max_radius[i] = fmaxf(max_radius[i], fmaxf(ext[0], ext[1]));
+            }
+        }
+    }
+    warp_add(&acc[6], e);
+}
+
+// How many Gaussians the forward pass drew, into counts[1].
+extern "C" __global__ void count_valid(int n, const int* valid, unsigned* counts) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    unsigned v = (i < n && valid[i]) ? 1u : 0u;
+    v = __reduce_add_sync(0xffffffffu, v);
+    if ((threadIdx.x & 31) == 0 && v) atomicAdd(&counts[1], v);
+}
+
+// ---- the sky (recon::sky::Sky::taps) ----
+
+__device__ void sky_taps(int res, float x, float y, float z, int* idx, float* w) {
+    float ax = fabsf(x), ay = fabsf(y), az = fabsf(z);
+    int face;
+    float s, t;
+    if (ax >= ay && ax >= az) {
+        if (x > 0.0f) { face = 0; s = -y / ax; t = -z / ax; }
+        else { face = 1; s = y / ax; t = -z / ax; }
+    } else if (ay >= az) {
+        if (y > 0.0f) { face = 2; s = x / ay; t = -z / ay; }
+        else { face = 3; s = -x / ay; t = -z / ay; }
+    } else {
+        float a = fmaxf(az, 1e-30f);
+        if (z > 0.0f) { face = 4; s = -y / a; t = x / a; }
+        else { face = 5; s = -y / a; t = -x / a; }
+    }
+    float nres = (float)res;
+    float fu = fminf(fmaxf((s + 1.0f) * 0.5f * nres - 0.5f, 0.0f), nres - 1.0f);
+    float fv = fminf(fmaxf((t + 1.0f) * 0.5f * nres - 0.5f, 0.0f), nres - 1.0f);
+    int u0 = (int)floorf(fu), v0 = (int)floorf(fv);
+    int u1 = min(u0 + 1, res - 1), v1 = min(v0 + 1, res - 1);
+    float wu = fu - (float)u0, wv = fv - (float)v0;
+    int base = face * res * res;
+    idx[0] = base + v0 * res + u0; w[0] = (1.0f - wu) * (1.0f - wv);
+    idx[1] = base + v0 * res + u1; w[1] = wu * (1.0f - wv);
+    idx[2] = base + v1 * res + u0; w[2] = (1.0f - wu) * wv;
+    idx[3] = base + v1 * res + u1; w[3] = wu * wv;
+}
+
+// recon::camera::pixel_ray: the unit world direction through pixel i's centre.
+__device__ void pixel_taps(const CamK& cam, int i, int res, int* idx, float* w) {
+    int px = i % cam.width, py = i / cam.width;
+    float d[3] = {((float)px + 0.5f - cam.cx) / cam.fx, ((float)py + 0.5f - cam.cy) / cam.fy, 1.0f};
+    float v[3];
+    for (int c = 0; c < 3; c++) v[c] = cam.r[c] * d[0] + cam.r[3 + c] * d[1] + cam.r[6 + c] * d[2];
+    float nv = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    sky_taps(res, v[0] / nv, v[1] / nv, v[2] / nv, idx, w);
+}
+
+// ---- the view loss (recon::loss::view_loss) ----
+// acc: 0 sum |out - target|, 1 sum (out - target)^2, 2 sum SSIM map (all channels), 3 depth,
+// 4 normal, 5 geo, 6 flattening (sum of the smallest scale).
+
+// Composite with the sky, L1 and its gradient, and the 15 SSIM input maps
+// (per channel: x, y, x^2, y^2, xy).
+extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* sky, const float* rgb,
+                                    const float* alpha, const float* target, float w_l1, float* out,
+                                    float* g_out, float* maps, float* acc) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    float l1 = 0.0f, sq = 0.0f;
+    if (i < p) {
+        int idx[4];
+        float w[4];
+        pixel_taps(cam, i, sky_res, idx, w);
+        float a = alpha[i];
+        for (int c = 0; c < 3; c++) {
+            float s = 0.0f;
+            for (int k = 0; k < 4; k++) s += w[k] * sky[idx[k] * 3 + c];
+            float x = rgb[3 * i + c] + s * (1.0f - a), y = target[3 * i + c];
+            float d = x - y;
+            l1 += fabsf(d);
+            sq += d * d;
+            out[3 * i + c] = x;
+            g_out[3 * i + c] = w_l1 * copysignf(1.0f, d);
+            float* mc = maps + (size_t)c * 5 * p;
+            mc[i] = x;
+            mc[p + i] = y;
+            mc[2 * p + i] = x * x;
+            mc[3 * p + i] = y * y;
+            mc[4 * p + i] = x * y;
+        }
+    }
+    warp_add(&acc[0], l1);
+    warp_add(&acc[1], sq);
+}
+
+// Separable Gaussian window with zero padding (recon::ssim::blur), over `nmaps` maps.
+extern "C" __global__ void blur_h(int nmaps, int width, int height, Win win, const float* src, float* dst) {
+    size_t p = (size_t)width * height;
+    size_t g = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (g >= p * nmaps) return;
+    size_t base = g - g % p;
+    int i = (int)(g % p), x = i % width, y = i / width;
+    float s = 0.0f;
+    for (int k = 0; k <= 2 * RADIUS; k++) {
+        int xx = x + k - RADIUS;
+        if (xx >= 0 && xx < width) s += win.w[k] * src[base + (size_t)y * width + xx];
+    }
+    dst[g] = s;
+}
+
+extern "C" __global__ void blur_v(int nmaps, int width, int height, Win win, const float* src, float* dst) {
+    size_t p = (size_t)width * height;
+    size_t g = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (g >= p * nmaps) return;
+    size_t base = g - g % p;
+    int i = (int)(g % p), x = i % width, y = i / width;
+    float s = 0.0f;
+    for (int k = 0; k <= 2 * RADIUS; k++) {
+        int yy = y + k - RADIUS;
+        if (yy >= 0 && yy < height) s += win.w[k] * src[base + (size_t)yy * width + x];
+    }
+    dst[g] = s;
+}
+
+// recon::ssim::ssim_channel's map and its three partial derivatives (9 maps: per channel d_mu,
+// d_xx, d_xy, each divided by the pixel count).
+extern "C" __global__ void ssim_terms(int p, const float* blurred, float* terms, float* acc) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    float ssum = 0.0f;
+    if (i < p) {
+        float inv_n = 1.0f / (float)p;
+        for (int c = 0; c < 3; c++) {
+            const float* b = blurred + (size_t)c * 5 * p;
+            float mx = b[i], my = b[p + i], exx = b[2 * p + i], eyy = b[3 * p + i], exy = b[4 * p + i];
+            float a1 = 2.0f * mx * my + SSIM_C1;
+            float a2 = 2.0f * (exy - mx * my) + SSIM_C2;
+            float b1 = mx * mx + my * my + SSIM_C1;
+            float b2 = (exx - mx * mx) + (eyy - my * my) + SSIM_C2;
+            float s = a1 * a2 / (b1 * b2);
+            ssum += s;
+            float* t = terms + (size_t)c * 3 * p;
+            t[i] = inv_n * (2.0f * my * (a2 - a1) / (b1 * b2) - 2.0f * mx * s * (1.0f / b1 - 1.0f / b2));
+            t[p + i] = inv_n * (-s / b2);
+            t[2 * p + i] = inv_n * (2.0f * a1 / (b1 * b2));
+        }
+    }
+    warp_add(&acc[2], ssum);
+}
+
+// The photometric gradient on the composite, then through the composite to RGB, alpha and the
+// sky texels.
+extern "C" __global__ void photo_grad(int p, CamK cam, int sky_res, const float* sky, const float* alpha,
+                                      const float* out, const float* target, const float* bterms, float w_ssim,
+                                      const float* g_out, float* up_rgb, float* up_alpha, float* sky_grad) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= p) return;
+    int idx[4];
+    float w[4];
+    pixel_taps(cam, i, sky_res, idx, w);
+    float a = alpha[i], ga = 0.0f;
+    for (int c = 0; c < 3; c++) {
+        const float* t = bterms + (size_t)c * 3 * p;
+        float x = out[3 * i + c], y = target[3 * i + c];
+        float g = g_out[3 * i + c] - w_ssim / 3.0f * (t[i] + 2.0f * x * t[p + i] + y * t[2 * p + i]);
+        float s = 0.0f;
+        for (int k = 0; k < 4; k++) s += w[k] * sky[idx[k] * 3 + c];
+        up_rgb[3 * i + c] = g;
+        ga -= g * s;
+        float gs = g * (1.0f - a);
+        if (gs != 0.0f)
+            for (int k = 0; k < 4; k++)
+                if (w[k] != 0.0f) atomicAdd(&sky_grad[idx[k] * 3 + c], w[k] * gs);
+    }
+    up_alpha[i] = ga;
+}
+
+// Relative depth L1 where the prior has a value; `scale` = weight / valid count.
+extern "C" __global__ void depth_loss(int p, const float* depth, const float* prior, float scale, float inv_valid,
+                                      float* up_depth, float* acc) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    float l = 0.0f;
+    if (i < p) {
+        float dp = prior[i], g = 0.0f;
+        if (dp > 0.0f) {
+            float d = depth[i] - dp;
+            l = fabsf(d) / dp * inv_valid;
+            g = scale * copysignf(1.0f, d) / dp;
+        }
+        up_depth[i] = g;
+    }
+    warp_add(&acc[3], l);
+}
+
+// Unit rendered normals (x, y, z, |n|) and how many pixels the normal term uses (the reference
+// is zero outside the supervision mask).
+extern "C" __global__ void normal_unit(int p, const float* normal, const float* nref, float* unit,
+                                       unsigned* count) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    unsigned used = 0;
+    if (i < p) {
+        float v[3] = {normal[3 * i], normal[3 * i + 1], normal[3 * i + 2]};
+        float n = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        bool ok = n > 1e-12f;
+        for (int c = 0; c < 3; c++) unit[4 * i + c] = ok ? v[c] / n : 0.0f;
+        unit[4 * i + 3] = ok ? n : 0.0f;
+        if (nref) {
+            bool has = nref[3 * i] != 0.0f || nref[3 * i + 1] != 0.0f || nref[3 * i + 2] != 0.0f;
+            used = ok && has ? 1u : 0u;
+        }
+    }
+    used = __reduce_add_sync(0xffffffffu, used);
+    if ((threadIdx.x & 31) == 0 && used) atomicAdd(count, used);
+}
+
+// L_normal's gradient on the unit normals (into g_unit, which this writes for every pixel).
+extern "C" __global__ void normal_terms(int p, const float* unit, const float* nref, float weight,
+                                        const unsigned* count, float* g_unit, float* acc) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    float l = 0.0f;
+    if (i < p) {
+        float g[3] = {0.0f, 0.0f, 0.0f};
+        unsigned cnt = *count;
+        if (nref && cnt > 0 && unit[4 * i + 3] > 0.0f) {
+            const float* r = nref + 3 * i;
+            if (r[0] != 0.0f || r[1] != 0.0f || r[2] != 0.0f) {
+                float s = 1.0f / (float)cnt;
+                const float* u = unit + 4 * i;
+                l = (1.0f - (u[0] * r[0] + u[1] * r[1] + u[2] * r[2])) * s;
+                for (int c = 0; c < 3; c++) g[c] = -weight * s * r[c];
+            }
+        }
+        for (int c = 0; c < 3; c++) g_unit[3 * i + c] = g[c];
+    }
+    warp_add(&acc[4], l);
+}
+
+// nbar = normalize(avgpool3x3(unit)) (zero padding, / 9), as (x, y, z, |m|).
+extern "C" __global__ void geo_pool(int width, int height, const float* unit, float* nbar) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= width * height) return;
+    int x = i % width, y = i / width;
+    float s[3] = {0.0f, 0.0f, 0.0f};
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++) {
+            int xx = x + dx, yy = y + dy;
+            if (xx >= 0 && yy >= 0 && xx < width && yy < height)
+                for (int c = 0; c < 3; c++) s[c] += unit[4 * (yy * width + xx) + c] / 9.0f;
+        }
+    float n = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    bool ok = n > 1e-12f;
+    for (int c = 0; c < 3; c++) nbar[4 * i + c] = ok ? s[c] / n : 0.0f;
+    nbar[4 * i + 3] = ok ? n : 0.0f;
+}
+
+__device__ __forceinline__ void through_normalise(const float* g, const float* u, float norm, float* out) {
+    if (norm == 0.0f) {
+        out[0] = out[1] = out[2] = 0.0f;
+        return;
+    }
+    float d = g[0] * u[0] + g[1] * u[1] + g[2] * u[2];
+    for (int c = 0; c < 3; c++) out[c] = (g[c] - d * u[c]) / norm;
+}
+
+// L_geo's terms: adds its direct gradient into g_unit and writes the gradient on the pooled
+// mean m (g_m); `s` = weight / sum of weights.
+extern "C" __global__ void geo_terms(int p, const float* unit, const float* nbar, const float* wg, float s,
+                                     float inv_wsum, float* g_unit, float* g_m, float* acc) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    float l = 0.0f;
+    if (i < p) {
+        float gm[3] = {0.0f, 0.0f, 0.0f};
+        float wi = wg[i];
+        const float* u = unit + 4 * i;
+        const float* nb = nbar + 4 * i;
+        if (wi > 0.0f && u[3] != 0.0f) {
+            l = wi * (1.0f - (u[0] * nb[0] + u[1] * nb[1] + u[2] * nb[2])) * inv_wsum;
+            for (int c = 0; c < 3; c++) g_unit[3 * i + c] -= s * wi * nb[c];
+            float g_nbar[3] = {-s * wi * u[0], -s * wi * u[1], -s * wi * u[2]};
+            through_normalise(g_nbar, nb, nb[3], gm);
+        }
+        for (int c = 0; c < 3; c++) g_m[3 * i + c] = gm[c];
+    }
+    warp_add(&acc[5], l);
+}
+
+// The pool's adjoint (when `geo`), then back through the normalisation to the rendered normal.
+extern "C" __global__ void normal_finish(int width, int height, int geo, const float* unit, const float* g_unit,
+                                         const float* g_m, float* up_normal) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= width * height) return;
+    float g[3] = {g_unit[3 * i], g_unit[3 * i + 1], g_unit[3 * i + 2]};
+    if (geo) {
+        int x = i % width, y = i / width;
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                int xx = x + dx, yy = y + dy;
+                if (xx >= 0 && yy >= 0 && xx < width && yy < height)
+                    for (int c = 0; c < 3; c++) g[c] += g_m[3 * (yy * width + xx) + c] / 9.0f;
+            }
+    }
+    through_normalise(g, unit + 4 * i, unit[4 * i + 3], up_normal + 3 * i);
+}
+
+// ---- Adam (recon::optim) ----
+// Rate `lr_a`, or `lr_b` for the elements whose index modulo `k` is 3 or more (SH beyond DC)
+// when k > 0.
+extern "C" __global__ void adam(size_t n, float* p, const float* g, float* m, float* v, float lr_a, float lr_b,
+                                int k, float bc1, float bc2) {
+    size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    float gi = g[i];
+    float mi = 0.9f * m[i] + 0.1f * gi;
+    float vi = 0.999f * v[i] + 0.001f * gi * gi;
+    m[i] = mi;
+    v[i] = vi;
+    float lr = (k > 0 && (int)(i % (size_t)k) >= 3) ? lr_b : lr_a;
+    p[i] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + 1e-15f);
+}

@@ -1,0 +1,119 @@
+//! The trainer's kernels (`kernels.cu`), compiled once per GPU with the rasterizer's NVRTC
+//! settings, and the plain-data arguments they take (`#[repr(C)]` twins of the CUDA structs).
+
+use crate::ReconError;
+use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig};
+use splat_cuda::Gpu;
+
+pub(crate) struct Kernels {
+    pub compose_segment: CudaFunction,
+    pub scatter_segment: CudaFunction,
+    pub count_valid: CudaFunction,
+    pub photo_l1: CudaFunction,
+    pub blur_h: CudaFunction,
+    pub blur_v: CudaFunction,
+    pub ssim_terms: CudaFunction,
+    pub photo_grad: CudaFunction,
+    pub depth_loss: CudaFunction,
+    pub normal_unit: CudaFunction,
+    pub normal_terms: CudaFunction,
+    pub geo_pool: CudaFunction,
+    pub geo_terms: CudaFunction,
+    pub normal_finish: CudaFunction,
+    pub adam: CudaFunction,
+}
+
+impl Kernels {
+    pub fn compile(gpu: &Gpu) -> Result<Kernels, ReconError> {
+        let m = gpu.compile_module(include_str!("kernels.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
+        let f = |name: &str| m.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
+        Ok(Kernels {
+            compose_segment: f("compose_segment")?,
+            scatter_segment: f("scatter_segment")?,
+            count_valid: f("count_valid")?,
+            photo_l1: f("photo_l1")?,
+            blur_h: f("blur_h")?,
+            blur_v: f("blur_v")?,
+            ssim_terms: f("ssim_terms")?,
+            photo_grad: f("photo_grad")?,
+            depth_loss: f("depth_loss")?,
+            normal_unit: f("normal_unit")?,
+            normal_terms: f("normal_terms")?,
+            geo_pool: f("geo_pool")?,
+            geo_terms: f("geo_terms")?,
+            normal_finish: f("normal_finish")?,
+            adam: f("adam")?,
+        })
+    }
+}
+
+/// One thread per element, 256 per block.
+pub(crate) fn linear(n: usize) -> LaunchConfig {
+    LaunchConfig { grid_dim: (n.div_ceil(256).max(1) as u32, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
+}
+
+/// `CamK`: camera_from_world rotation rows and intrinsics.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CamK {
+    pub r: [f32; 9],
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: i32,
+    pub height: i32,
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for CamK {}
+
+impl CamK {
+    pub fn of(cam: &splat::Camera) -> CamK {
+        let m = &cam.camera_from_world;
+        CamK {
+            r: std::array::from_fn(|k| m[k / 3][k % 3] as f32),
+            fx: cam.fx as f32,
+            fy: cam.fy as f32,
+            cx: cam.cx as f32,
+            cy: cam.cy as f32,
+            width: cam.width as i32,
+            height: cam.height as i32,
+        }
+    }
+}
+
+/// `Xf`: an actor's world_from_box at the view's time (see kernels.cu).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Xf {
+    pub r: [f32; 9],
+    pub t: [f32; 3],
+    pub c: f32,
+    pub s: f32,
+    pub m: [f32; 256],
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for Xf {}
+
+impl Xf {
+    pub const IDENTITY: Xf = Xf { r: [0.0; 9], t: [0.0; 3], c: 1.0, s: 0.0, m: [0.0; 256] };
+}
+
+/// `Win`: the SSIM window (recon::ssim's 11 taps, sigma 1.5, normalised).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Win {
+    pub w: [f32; 11],
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for Win {}
+
+impl Win {
+    pub fn ssim() -> Win {
+        let w = crate::ssim::window();
+        Win { w: std::array::from_fn(|k| w[k] as f32) }
+    }
+}

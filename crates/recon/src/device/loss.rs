@@ -1,0 +1,274 @@
+//! The view loss on the device (recon::loss::view_loss, term for term): composite with the sky,
+//! L1 + SSIM, relative depth L1, `L_normal`, `L_geo`, and their gradients written straight into
+//! the rasterizer's upstream buffers. The scalar terms are summed on the device into `acc` and
+//! read back once per iteration (with the flattening sum) to report the loss.
+
+use super::kernels::{linear, CamK, Kernels, Win};
+use super::targets::ViewTargets;
+use crate::loss::{LossParts, LossWeights};
+use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DeviceRepr, DriverError, PushKernelArg, ValidAsZeroBits};
+use splat_cuda::ImageIo;
+use std::sync::Arc;
+
+/// Indices into `acc`.
+pub(crate) const ACC_FLAT: usize = 6;
+pub(crate) const ACC_LEN: usize = 8;
+/// Indices into `counts`.
+pub(crate) const COUNT_NORMAL: usize = 0;
+pub(crate) const COUNT_DRAWN: usize = 1;
+
+/// Per-pixel scratch, grown to the largest view.
+pub(crate) struct Scratch {
+    pub out: CudaSlice<f32>,
+    pub g_out: CudaSlice<f32>,
+    pub maps: CudaSlice<f32>,
+    pub tmp: CudaSlice<f32>,
+    pub terms: CudaSlice<f32>,
+    pub unit: CudaSlice<f32>,
+    pub nbar: CudaSlice<f32>,
+    pub g_unit: CudaSlice<f32>,
+    pub g_m: CudaSlice<f32>,
+    pub acc: CudaSlice<f32>,
+    pub counts: CudaSlice<u32>,
+}
+
+fn grow<T: DeviceRepr + ValidAsZeroBits>(
+    s: &Arc<CudaStream>,
+    b: &mut CudaSlice<T>,
+    n: usize,
+) -> Result<(), DriverError> {
+    if b.len() < n {
+        *b = s.alloc_zeros(n)?;
+    }
+    Ok(())
+}
+
+impl Scratch {
+    pub fn new(s: &Arc<CudaStream>) -> Result<Scratch, DriverError> {
+        Ok(Scratch {
+            out: s.alloc_zeros(1)?,
+            g_out: s.alloc_zeros(1)?,
+            maps: s.alloc_zeros(1)?,
+            tmp: s.alloc_zeros(1)?,
+            terms: s.alloc_zeros(1)?,
+            unit: s.alloc_zeros(1)?,
+            nbar: s.alloc_zeros(1)?,
+            g_unit: s.alloc_zeros(1)?,
+            g_m: s.alloc_zeros(1)?,
+            acc: s.alloc_zeros(ACC_LEN)?,
+            counts: s.alloc_zeros(2)?,
+        })
+    }
+
+    fn fit(&mut self, s: &Arc<CudaStream>, p: usize) -> Result<(), DriverError> {
+        for (b, k) in [
+            (&mut self.out, 3),
+            (&mut self.g_out, 3),
+            (&mut self.maps, 15),
+            (&mut self.tmp, 15),
+            (&mut self.terms, 9),
+            (&mut self.unit, 4),
+            (&mut self.nbar, 4),
+            (&mut self.g_unit, 3),
+            (&mut self.g_m, 3),
+        ] {
+            grow(s, b, k * p)?;
+        }
+        Ok(())
+    }
+}
+
+/// The sky as the loss sees it.
+pub(crate) struct SkyIn<'a> {
+    pub res: usize,
+    pub texels: &'a CudaSlice<f32>,
+    pub grad: &'a mut CudaSlice<f32>,
+}
+
+/// Launches every loss kernel for one view; the upstream buffers of `io` hold the gradients after.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn launch(
+    k: &Kernels,
+    s: &Arc<CudaStream>,
+    sc: &mut Scratch,
+    io: ImageIo,
+    cam: &splat::Camera,
+    t: &ViewTargets,
+    sky: SkyIn,
+    w: &LossWeights,
+) -> Result<(), DriverError> {
+    let (width, height) = (cam.width as i32, cam.height as i32);
+    let p = (cam.width * cam.height) as usize;
+    sc.fit(s, p)?;
+    s.memset_zeros(&mut sc.acc)?;
+    s.memset_zeros(&mut sc.counts)?;
+    let (p32, ck, res) = (p as i32, CamK::of(cam), sky.res as i32);
+    let w_l1 = ((1.0 - w.ssim) / (3 * p) as f64) as f32;
+    let win = Win::ssim();
+    // SAFETY (every launch below): each buffer holds at least the pixels times channels the
+    // kernel indexes (`Scratch::fit`, `ImageIo`, `ViewTargets` of this view's size).
+    unsafe {
+        s.launch_builder(&k.photo_l1)
+            .arg(&p32)
+            .arg(&ck)
+            .arg(&res)
+            .arg(sky.texels)
+            .arg(io.rgb)
+            .arg(io.alpha)
+            .arg(&t.rgb)
+            .arg(&w_l1)
+            .arg(&mut sc.out)
+            .arg(&mut sc.g_out)
+            .arg(&mut sc.maps)
+            .arg(&mut sc.acc)
+            .launch(linear(p))?;
+        blur(k, s, 15, width, height, &win, &mut sc.maps, &mut sc.tmp)?;
+        s.launch_builder(&k.ssim_terms)
+            .arg(&p32)
+            .arg(&sc.maps)
+            .arg(&mut sc.terms)
+            .arg(&mut sc.acc)
+            .launch(linear(p))?;
+        blur(k, s, 9, width, height, &win, &mut sc.terms, &mut sc.tmp)?;
+        let w_ssim = w.ssim as f32;
+        s.launch_builder(&k.photo_grad)
+            .arg(&p32)
+            .arg(&ck)
+            .arg(&res)
+            .arg(sky.texels)
+            .arg(io.alpha)
+            .arg(&sc.out)
+            .arg(&t.rgb)
+            .arg(&sc.terms)
+            .arg(&w_ssim)
+            .arg(&sc.g_out)
+            .arg(&mut *io.up_rgb)
+            .arg(&mut *io.up_alpha)
+            .arg(&mut *sky.grad)
+            .launch(linear(p))?;
+        match (&t.depth, w.depth > 0.0 && t.depth_valid > 0) {
+            (Some(dp), true) => {
+                let inv = 1.0 / t.depth_valid as f64;
+                let (scale, inv) = ((w.depth * inv) as f32, inv as f32);
+                s.launch_builder(&k.depth_loss)
+                    .arg(&p32)
+                    .arg(io.depth)
+                    .arg(dp)
+                    .arg(&scale)
+                    .arg(&inv)
+                    .arg(&mut *io.up_depth)
+                    .arg(&mut sc.acc)
+                    .launch(linear(p))?;
+            }
+            _ => s.memset_zeros(&mut *io.up_depth)?,
+        }
+        let use_normal = w.normal > 0.0 && t.normal.is_some();
+        let use_geo = w.geo > 0.0 && t.geo_sum > 0.0 && t.geo_weight.is_some();
+        if !use_normal && !use_geo {
+            s.memset_zeros(&mut *io.up_normal)?;
+            return Ok(());
+        }
+        let null = 0u64;
+        let mut b = s.launch_builder(&k.normal_unit);
+        b.arg(&p32).arg(io.normal);
+        match (&t.normal, use_normal) {
+            (Some(n), true) => b.arg(n),
+            _ => b.arg(&null),
+        };
+        b.arg(&mut sc.unit).arg(&mut sc.counts).launch(linear(p))?;
+        let wn = w.normal as f32;
+        let mut b = s.launch_builder(&k.normal_terms);
+        b.arg(&p32).arg(&sc.unit);
+        match (&t.normal, use_normal) {
+            (Some(n), true) => b.arg(n),
+            _ => b.arg(&null),
+        };
+        b.arg(&wn).arg(&sc.counts).arg(&mut sc.g_unit).arg(&mut sc.acc).launch(linear(p))?;
+        if let (Some(wg), true) = (&t.geo_weight, use_geo) {
+            s.launch_builder(&k.geo_pool).arg(&width).arg(&height).arg(&sc.unit).arg(&mut sc.nbar).launch(linear(p))?;
+            let (sg, inv) = ((w.geo / t.geo_sum) as f32, (1.0 / t.geo_sum) as f32);
+            s.launch_builder(&k.geo_terms)
+                .arg(&p32)
+                .arg(&sc.unit)
+                .arg(&sc.nbar)
+                .arg(wg)
+                .arg(&sg)
+                .arg(&inv)
+                .arg(&mut sc.g_unit)
+                .arg(&mut sc.g_m)
+                .arg(&mut sc.acc)
+                .launch(linear(p))?;
+        }
+        let geo = use_geo as i32;
+        s.launch_builder(&k.normal_finish)
+            .arg(&width)
+            .arg(&height)
+            .arg(&geo)
+            .arg(&sc.unit)
+            .arg(&sc.g_unit)
+            .arg(&sc.g_m)
+            .arg(&mut *io.up_normal)
+            .launch(linear(p))?;
+    }
+    Ok(())
+}
+
+/// Separable blur of `n` maps in `maps` (through `tmp`), result back in `maps`.
+#[allow(clippy::too_many_arguments)]
+fn blur(
+    k: &Kernels,
+    s: &Arc<CudaStream>,
+    n: i32,
+    width: i32,
+    height: i32,
+    win: &Win,
+    maps: &mut CudaSlice<f32>,
+    tmp: &mut CudaSlice<f32>,
+) -> Result<(), DriverError> {
+    let total = n as usize * (width * height) as usize;
+    // SAFETY: both buffers hold n maps of width x height.
+    unsafe {
+        s.launch_builder(&k.blur_h)
+            .arg(&n)
+            .arg(&width)
+            .arg(&height)
+            .arg(win)
+            .arg(&*maps)
+            .arg(&mut *tmp)
+            .launch(linear(total))?;
+        s.launch_builder(&k.blur_v)
+            .arg(&n)
+            .arg(&width)
+            .arg(&height)
+            .arg(win)
+            .arg(&*tmp)
+            .arg(&mut *maps)
+            .launch(linear(total))?;
+    }
+    Ok(())
+}
+
+/// The loss parts from the device sums (`acc`, `counts` as read back) for a view of `p` pixels.
+pub(crate) fn parts(acc: &[f32], counts: &[u32], p: usize, t: &ViewTargets, w: &LossWeights) -> (LossParts, f64) {
+    let a = |i: usize| acc[i] as f64;
+    let n3 = (3 * p) as f64;
+    let mut parts = LossParts { l1: a(0) / n3, ssim: a(2) / n3, ..LossParts::default() };
+    let mse = a(1) / n3;
+    let mut total = (1.0 - w.ssim) * parts.l1 + w.ssim * (1.0 - parts.ssim);
+    if t.depth.is_some() && w.depth > 0.0 && t.depth_valid > 0 {
+        parts.depth = a(3);
+        total += w.depth * parts.depth;
+    }
+    if t.normal.is_some() && w.normal > 0.0 && counts[COUNT_NORMAL] > 0 {
+        parts.normal = a(4);
+        total += w.normal * parts.normal;
+    }
+    if t.geo_weight.is_some() && w.geo > 0.0 && t.geo_sum > 0.0 {
+        parts.geo = a(5);
+        total += w.geo * parts.geo;
+    }
+    parts.flat = a(ACC_FLAT) / counts[COUNT_DRAWN].max(1) as f64;
+    total += w.flat * parts.flat;
+    parts.total = total;
+    (parts, mse)
+}
