@@ -31,6 +31,7 @@ gsplat has no sky: the background is fixed black (carla-gs composites a learned 
 its Gaussians). Every other known difference is listed in the output JSON under "notes".
 
 Usage: gsplat_train.py --scene <scene dir> --init <model dir> --iters 7000,30000 --out gsplat.json
+(one full run per count, like `carla-gs train --iters N` whose schedule is fractions of N)
 Needs torch with CUDA and gsplat importable (tools/bench/train-side-by-side.sh sets that up).
 """
 import argparse, json, math, os, sys, time
@@ -196,13 +197,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scene", required=True, help="scene dir written by `carla-gs ingest`")
     ap.add_argument("--init", required=True, help="model dir written by `carla-gs train --stop-after 0`")
-    ap.add_argument("--iters", default="7000,30000", help="checkpoints; trains once to the largest")
+    ap.add_argument("--iters", default="7000,30000",
+                    help="iteration counts; one full run per count (the schedule is fractions of the count, as `carla-gs train --iters N`)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--eval-train", action="store_true", help="also score the training views")
     ap.add_argument("--check-data", action="store_true", help="load views and PLY only (no torch), print a summary")
     a = ap.parse_args()
-    checkpoints = sorted({int(x) for x in a.iters.split(",")})
-    total = checkpoints[-1]
+    counts = sorted({int(x) for x in a.iters.split(",")})
 
     cfg, cfg_note = load_config(a.init)
     record = json.load(open(os.path.join(a.init, "model.json")))
@@ -213,14 +214,12 @@ def main():
     g0 = init_gaussians(read_ply(os.path.join(a.init, record["background_file"] or "background.ply")))
     assert not record["actors"], "the scene has actors; this script trains the background only"
     d = cfg["densify"]
-    at = lambda f: rust_round(f * total)
-    d_from, d_until, d_reset = at(d["from"]), at(d["until"]), at(d["opacity_reset_every"])
     train_idx = [i for i, v in enumerate(views) if not v["held_out"]]
     held_idx = [i for i, v in enumerate(views) if v["held_out"]] or list(range(len(views)))
     summary = dict(views=len(views), train_views=len(train_idx), held_out_views=len(held_idx),
                    size=[views[0]["w"], views[0]["h"]], gaussians_init=int(len(g0["means"])), sh_degree_file=g0["degree"],
-                   extent=extent, scale=scale, densify_from=d_from, densify_until=d_until, opacity_reset=d_reset,
-                   config=cfg_note)
+                   extent=extent, scale=scale, config=cfg_note,
+                   schedules={n: [rust_round(d[k] * n) for k in ("from", "until", "opacity_reset_every")] for n in counts})
     print(json.dumps(summary), flush=True)
     if a.check_data:
         for v in views[:2]:
@@ -235,111 +234,115 @@ def main():
     from gsplat.strategy.ops import reset_opa
 
     seed = int(cfg["seed"])
-    torch.manual_seed(seed)
-    np.random.seed(seed)
     dev = "cuda"
     # Data on the GPU before timing (carla-gs's device trainer also uploads every target first).
     imgs = [torch.from_numpy(load_rgb(v["path"], v["w"], v["h"])).to(dev) for v in views]
     Ks = [torch.tensor(v["K"], dtype=torch.float32, device=dev)[None] for v in views]
     vms = [torch.tensor(v["viewmat"], dtype=torch.float32, device=dev)[None] for v in views]
-
     sh_degree = int(cfg["sh_degree"])
-    k = (sh_degree + 1) ** 2
-    sh = torch.from_numpy(g0["sh"]).to(dev)
-    if sh.shape[1] < k:  # the PLY may hold fewer SH coefficients than the final degree: pad with zeros
-        sh = torch.cat([sh, torch.zeros(sh.shape[0], k - sh.shape[1], 3, device=dev)], 1)
-    sh = sh[:, :k]
-    lr = cfg["lr"]
-    params = torch.nn.ParameterDict({
-        "means": torch.nn.Parameter(torch.from_numpy(g0["means"]).to(dev)),
-        "scales": torch.nn.Parameter(torch.from_numpy(g0["scales"]).to(dev)),
-        "quats": torch.nn.Parameter(torch.from_numpy(g0["quats"]).to(dev)),
-        "opacities": torch.nn.Parameter(torch.from_numpy(g0["opacities"]).to(dev)),
-        "sh0": torch.nn.Parameter(sh[:, :1].contiguous()),
-        "shN": torch.nn.Parameter(sh[:, 1:].contiguous()),
-    })
-    rates = {"means": lr["means"] * extent, "scales": lr["log_scales"], "quats": lr["rotations"],
-             "opacities": lr["opacity"], "sh0": lr["sh_dc"], "shN": lr["sh_rest"]}
-    # One Adam per parameter (DefaultStrategy's convention), gsplat simple_trainer's eps 1e-15.
-    optimizers = {n: torch.optim.Adam([{"params": params[n], "lr": rates[n], "name": n}], eps=1e-15, betas=(0.9, 0.999))
-                  for n in params}
-    strategy = DefaultStrategy(
-        prune_opa=d["prune_opacity"], grow_grad2d=d["grad_threshold"], grow_scale3d=d["percent_dense"],
-        prune_scale3d=d["max_world_fraction"], refine_scale2d_stop_iter=0,  # max_screen_size 0: off
-        refine_start_iter=d_from, refine_stop_iter=d_until, refine_every=int(d["interval"]),
-        # The opacity reset is done below: in gsplat 1.5.3 `step % reset_every == 0 & step > 0` parses as
-        # `(step % reset_every == 0) and (0 > 0)`, so DefaultStrategy never resets; reset_every still
-        # gates the large-Gaussian pruning (`step > reset_every`) as in carla-gs (n > reset).
-        reset_every=d_reset if d_reset > 0 else 10 ** 9, pause_refine_after_reset=0, absgrad=False,
-        revised_opacity=False, verbose=False)
-    strategy.check_sanity(params, optimizers)
-    state = strategy.initialize_state(scene_scale=extent)
     window = gaussian_window(torch, dev)
     w_ssim = float(cfg["loss"]["ssim"])
-    rng = np.random.default_rng(seed)
-    order = []
+    lr = cfg["lr"]
 
-    def render(i, degree):
-        v = views[i]
-        colors = torch.cat([params["sh0"], params["shN"]], 1)
-        img, alpha, info = rasterization(
-            params["means"], params["quats"], torch.exp(params["scales"]), torch.sigmoid(params["opacities"]),
-            colors, vms[i], Ks[i], v["w"], v["h"], sh_degree=degree, near_plane=0.05, far_plane=1e4,
-            packed=False, absgrad=False, render_mode="RGB", backgrounds=None)
-        return img[0], info  # [H, W, 3], black where alpha < 1
+    def train(total):
+        """One full run of `total` iterations from the initial Gaussians; its result record."""
+        torch.manual_seed(seed)
+        rng = np.random.default_rng(seed)
+        d_from, d_until, d_reset = (rust_round(d[k] * total) for k in ("from", "until", "opacity_reset_every"))
+        k = (sh_degree + 1) ** 2
+        sh = torch.from_numpy(g0["sh"]).to(dev)
+        if sh.shape[1] < k:  # the PLY may hold fewer SH coefficients than the final degree: pad with zeros
+            sh = torch.cat([sh, torch.zeros(sh.shape[0], k - sh.shape[1], 3, device=dev)], 1)
+        sh = sh[:, :k]
+        params = torch.nn.ParameterDict({
+            "means": torch.nn.Parameter(torch.from_numpy(g0["means"]).to(dev)),
+            "scales": torch.nn.Parameter(torch.from_numpy(g0["scales"]).to(dev)),
+            "quats": torch.nn.Parameter(torch.from_numpy(g0["quats"]).to(dev)),
+            "opacities": torch.nn.Parameter(torch.from_numpy(g0["opacities"]).to(dev)),
+            "sh0": torch.nn.Parameter(sh[:, :1].contiguous()),
+            "shN": torch.nn.Parameter(sh[:, 1:].contiguous()),
+        })
+        rates = {"means": lr["means"] * extent, "scales": lr["log_scales"], "quats": lr["rotations"],
+                 "opacities": lr["opacity"], "sh0": lr["sh_dc"], "shN": lr["sh_rest"]}
+        # One Adam per parameter (DefaultStrategy's convention), gsplat simple_trainer's eps 1e-15.
+        optimizers = {n: torch.optim.Adam([{"params": params[n], "lr": rates[n], "name": n}], eps=1e-15,
+                                          betas=(0.9, 0.999)) for n in params}
+        strategy = DefaultStrategy(
+            prune_opa=d["prune_opacity"], grow_grad2d=d["grad_threshold"], grow_scale3d=d["percent_dense"],
+            prune_scale3d=d["max_world_fraction"], refine_scale2d_stop_iter=0,  # max_screen_size 0: off
+            refine_start_iter=d_from, refine_stop_iter=d_until, refine_every=int(d["interval"]),
+            # The opacity reset is done below: in gsplat 1.5.3 `step % reset_every == 0 & step > 0` parses as
+            # `(step % reset_every == 0) and (0 > 0)`, so DefaultStrategy never resets; reset_every still
+            # gates the large-Gaussian pruning (`step > reset_every`) as in carla-gs (n > reset).
+            reset_every=d_reset if d_reset > 0 else 10 ** 9, pause_refine_after_reset=0, absgrad=False,
+            revised_opacity=False, verbose=False)
+        strategy.check_sanity(params, optimizers)
+        state = strategy.initialize_state(scene_scale=extent)
 
-    def evaluate(idx):
-        ps, ss = [], []
-        with torch.no_grad():
-            for i in idx:
-                img, _ = render(i, sh_degree)
-                img = img.clamp(0, 1)
-                mse = torch.mean((img - imgs[i]) ** 2).item()
-                ps.append(float("inf") if mse <= 0 else -10 * math.log10(mse))
-                ss.append(ssim(torch, img, imgs[i], window).item())
-        return dict(psnr=float(np.mean(ps)), ssim=float(np.mean(ss)), views=len(idx))
+        def render(i, degree):
+            v = views[i]
+            colors = torch.cat([params["sh0"], params["shN"]], 1)  # [N, K, 3]
+            img, alpha, info = rasterization(
+                params["means"], params["quats"], torch.exp(params["scales"]), torch.sigmoid(params["opacities"]),
+                colors, vms[i], Ks[i], v["w"], v["h"], sh_degree=degree, near_plane=0.05, far_plane=1e4,
+                packed=False, absgrad=False, render_mode="RGB", backgrounds=None)
+            return img[0], info  # [H, W, 3], black where alpha < 1
 
-    torch.cuda.reset_peak_memory_stats()
-    results, train_s = [], 0.0
-    torch.cuda.synchronize()
-    t0 = time.perf_counter()
-    for it in range(total):
-        n = it + 1  # carla-gs's density control runs on the 1-based iteration
-        if not order:
-            order = list(rng.permutation(train_idx))  # a seeded permutation per epoch (carla-gs: ChaCha8)
-        i = order.pop(0)
-        optimizers["means"].param_groups[0]["lr"] = extent * math.exp(
-            math.log(lr["means"]) * (1 - it / total) + math.log(lr["means_final"]) * (it / total))
-        degree = min(it // int(cfg["sh_degree_interval"]), sh_degree)
-        img, info = render(i, degree)
-        strategy.step_pre_backward(params, optimizers, state, n, info)
-        l1 = torch.abs(img - imgs[i]).mean()
-        loss = (1 - w_ssim) * l1 + w_ssim * (1 - ssim(torch, img, imgs[i], window))
-        loss.backward()
-        for opt in optimizers.values():
-            opt.step()
-            opt.zero_grad(set_to_none=True)
-        # carla-gs: no clone/split once the model holds max_gaussians (pruning still runs).
-        grow = len(params["means"]) < d["max_gaussians"]
-        saved = strategy.grow_grad2d
-        if not grow:
-            strategy.grow_grad2d = float("inf")
-        strategy.step_post_backward(params, optimizers, state, n, info, packed=False)
-        strategy.grow_grad2d = saved
-        if d_reset > 0 and n % d_reset == 0 and n < d_until:
-            reset_opa(params=params, optimizers=optimizers, state=state, value=2.0 * d["prune_opacity"])
-        if n in checkpoints:
-            torch.cuda.synchronize()
-            train_s += time.perf_counter() - t0
-            r = dict(iterations=n, train_seconds=train_s, iterations_per_second=n / train_s,
-                     gaussians=int(len(params["means"])), peak_memory_bytes=int(torch.cuda.max_memory_allocated()),
-                     held_out=evaluate(held_idx), last_loss=float(loss.item()))
-            if a.eval_train:
-                r["train"] = evaluate(train_idx)
-            print(json.dumps(r), flush=True)
-            results.append(r)
-            torch.cuda.synchronize()
-            t0 = time.perf_counter()
+        def evaluate(idx):
+            ps, ss = [], []
+            with torch.no_grad():
+                for i in idx:
+                    img, _ = render(i, sh_degree)
+                    img = img.clamp(0, 1)
+                    mse = torch.mean((img - imgs[i]) ** 2).item()
+                    ps.append(float("inf") if mse <= 0 else -10 * math.log10(mse))
+                    ss.append(ssim(torch, img, imgs[i], window).item())
+            return dict(psnr=float(np.mean(ps)), ssim=float(np.mean(ss)), views=len(idx))
+
+        order = []
+        torch.cuda.empty_cache()
+        torch.cuda.reset_peak_memory_stats()
+        torch.cuda.synchronize()
+        t0 = time.perf_counter()
+        for it in range(total):
+            n = it + 1  # carla-gs's density control runs on the 1-based iteration
+            if not order:
+                order = [int(x) for x in rng.permutation(train_idx)]  # seeded permutation per epoch (carla-gs: ChaCha8)
+            i = order.pop(0)
+            optimizers["means"].param_groups[0]["lr"] = extent * math.exp(
+                math.log(lr["means"]) * (1 - it / total) + math.log(lr["means_final"]) * (it / total))
+            degree = min(it // int(cfg["sh_degree_interval"]), sh_degree)
+            img, info = render(i, degree)
+            strategy.step_pre_backward(params, optimizers, state, n, info)
+            l1 = torch.abs(img - imgs[i]).mean()
+            loss = (1 - w_ssim) * l1 + w_ssim * (1 - ssim(torch, img, imgs[i], window))
+            loss.backward()
+            for opt in optimizers.values():
+                opt.step()
+                opt.zero_grad(set_to_none=True)
+            # carla-gs: no clone/split once the model holds max_gaussians (pruning still runs).
+            saved = strategy.grow_grad2d
+            if len(params["means"]) >= d["max_gaussians"]:
+                strategy.grow_grad2d = float("inf")
+            strategy.step_post_backward(params, optimizers, state, n, info, packed=False)
+            strategy.grow_grad2d = saved
+            if d_reset > 0 and n % d_reset == 0 and n < d_until:
+                reset_opa(params=params, optimizers=optimizers, state=state, value=2.0 * d["prune_opacity"])
+        torch.cuda.synchronize()
+        train_s = time.perf_counter() - t0
+        r = dict(iterations=total, train_seconds=train_s, iterations_per_second=total / train_s,
+                 gaussians=int(len(params["means"])), peak_memory_bytes=int(torch.cuda.max_memory_allocated()),
+                 schedule=dict(densify_from=d_from, densify_until=d_until, opacity_reset_every=d_reset),
+                 last_loss=float(loss.item()), held_out=evaluate(held_idx))
+        if a.eval_train:
+            r["train"] = evaluate(train_idx)
+        return r
+
+    results = []
+    for total in counts:
+        r = train(total)
+        print(json.dumps(r), flush=True)
+        results.append(r)
     notes = [
         "background: fixed black; carla-gs composites a learned sky cube map behind its Gaussians (no gsplat equivalent)",
         "view order: a numpy seeded permutation per epoch; carla-gs uses ChaCha8 (same scheme, different order)",
@@ -352,7 +355,8 @@ def main():
         "simple_trainer uses 5e-2); Adam eps 1e-15 (gsplat simple_trainer)",
         "SSIM: torch conv2d zero padding, 'same' size (carla-gs recon::ssim); gsplat simple_trainer would use fused_ssim 'valid'",
         "rasterization: classic mode, packed=False, near 0.05, far 1e4 (carla-gs splat::Camera near/far)",
-        "time: training only (synchronised), data upload and evaluation excluded; peak memory torch.cuda.max_memory_allocated",
+        "time: training only (synchronised), data upload and evaluation excluded; peak memory torch.cuda.max_memory_allocated "
+        "(tensors only, not the caching allocator's reserve nor the CUDA context)",
     ]
     out = dict(tool="gsplat", gsplat=gsplat.__version__, torch=torch.__version__, device=torch.cuda.get_device_name(0),
                seed=seed, **summary, results=results, notes=notes)
