@@ -87,7 +87,7 @@ def load_rgb(path, w, h):
     img = Image.open(path).convert("RGB")
     a = np.asarray(img, dtype=np.float32) / 255.0
     if img.size != (w, h):
-        chans = [np.asarray(Image.fromarray(a[..., c], mode="F").resize((w, h), Image.BILINEAR)) for c in range(3)]
+        chans = [np.asarray(Image.fromarray(np.ascontiguousarray(a[..., c])).resize((w, h), Image.BILINEAR)) for c in range(3)]
         a = np.stack(chans, axis=-1)
     return np.clip(a, 0.0, 1.0).astype(np.float32)
 
@@ -352,7 +352,10 @@ def main():
         "`step % reset_every == 0 & step > 0`), to 2 x prune_opa = 0.01 with the opacity Adam moments cleared, as carla-gs",
         "max_gaussians cap emulated: grow_grad2d set to infinity at refinement steps once the count reaches it",
         "learning rates, SH schedule, densification schedule and loss are carla-gs's (opacity lr 2.5e-2, gsplat "
-        "simple_trainer uses 5e-2); Adam eps 1e-15 (gsplat simple_trainer)",
+        "simple_trainer uses 5e-2); Adam eps 1e-15, betas 0.9/0.999 as carla-gs (recon::optim) and simple_trainer; torch Adam "
+        "counts steps per parameter tensor (carla-gs: one iteration count), the same here since every tensor steps every iteration",
+        "images: decoded by PIL (libjpeg) and resized by PIL's float bilinear (triangle) filter; carla-gs decodes with the image "
+        "crate and resizes with its Triangle filter: same filter, decoders may differ by 1/255 on some pixels",
         "SSIM: torch conv2d zero padding, 'same' size (carla-gs recon::ssim); gsplat simple_trainer would use fused_ssim 'valid'",
         "rasterization: classic mode, packed=False, near 0.05, far 1e4 (carla-gs splat::Camera near/far)",
         "time: training only (synchronised), data upload and evaluation excluded; peak memory torch.cuda.max_memory_allocated "
