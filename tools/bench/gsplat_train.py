@@ -201,6 +201,8 @@ def main():
                     help="iteration counts; one full run per count (the schedule is fractions of the count, as `carla-gs train --iters N`)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--eval-train", action="store_true", help="also score the training views")
+    ap.add_argument("--no-opacity-reset", action="store_true",
+                    help="stock gsplat 1.5.3 behaviour: its DefaultStrategy never resets opacities (see notes)")
     ap.add_argument("--check-data", action="store_true", help="load views and PLY only (no torch), print a summary")
     a = ap.parse_args()
     counts = sorted({int(x) for x in a.iters.split(",")})
@@ -326,7 +328,7 @@ def main():
                 strategy.grow_grad2d = float("inf")
             strategy.step_post_backward(params, optimizers, state, n, info, packed=False)
             strategy.grow_grad2d = saved
-            if d_reset > 0 and n % d_reset == 0 and n < d_until:
+            if not a.no_opacity_reset and d_reset > 0 and n % d_reset == 0 and n < d_until:
                 reset_opa(params=params, optimizers=optimizers, state=state, value=2.0 * d["prune_opacity"])
         torch.cuda.synchronize()
         train_s = time.perf_counter() - t0
@@ -349,7 +351,8 @@ def main():
         "densify gradient: gsplat scales d loss / d means2d by (W/2, H/2) per axis; carla-gs by max(W,H)/2 on both axes "
         "(same on square images, carla-gs's larger on the short axis otherwise)",
         "opacity reset done by this script (gsplat 1.5.3's DefaultStrategy reset never fires: operator precedence in "
-        "`step % reset_every == 0 & step > 0`), to 2 x prune_opa = 0.01 with the opacity Adam moments cleared, as carla-gs",
+        "`step % reset_every == 0 & step > 0`), to 2 x prune_opa = 0.01 with the opacity Adam moments cleared, as carla-gs"
+        + (" -- OFF in this run (--no-opacity-reset: stock gsplat 1.5.3)" if a.no_opacity_reset else ""),
         "max_gaussians cap emulated: grow_grad2d set to infinity at refinement steps once the count reaches it",
         "learning rates, SH schedule, densification schedule and loss are carla-gs's (opacity lr 2.5e-2, gsplat "
         "simple_trainer uses 5e-2); Adam eps 1e-15, betas 0.9/0.999 as carla-gs (recon::optim) and simple_trainer; torch Adam "

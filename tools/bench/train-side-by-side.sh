@@ -16,6 +16,8 @@
 # Peak GPU memory: nvidia-smi memory.used sampled every 200 ms during each run, max minus the idle
 # baseline before it (both tools; includes the CUDA context and caching-allocator reserve); gsplat's
 # torch.cuda.max_memory_allocated (tensors only) is reported too.
+# GSPLAT_ARGS (environment) is passed to gsplat_train.py, e.g. GSPLAT_ARGS=--no-opacity-reset for stock
+# gsplat 1.5.3 (its DefaultStrategy never resets opacities; by default the script resets them as we do).
 # Our checkpoints are off during the timed run (checkpoint_interval = 0, a file written here), so
 # ours does not pay for disk writes that gsplat does not do; the model is still written at the end.
 set -euo pipefail
@@ -61,7 +63,7 @@ for n in $(echo "$iters" | tr ',' ' '); do
   echo "$t0 $t1" > "$out/ours-$n.wall"
   "$bin" eval-recon "$out/ours-$n" "$out/scene" --json --device cuda > "$out/ours-$n-eval.json"
   sample_peak "$out/gsplat-$n.gpu-mem" python3 "$here/gsplat_train.py" --scene "$out/scene" --init "$out/init" \
-    --iters "$n" --out "$out/gsplat-$n.json"
+    --iters "$n" --out "$out/gsplat-$n.json" ${GSPLAT_ARGS:-}
 done
 
 python3 - "$out" "$iters" <<'PY'
