@@ -6,6 +6,9 @@
 #   tools/bench/train-side-by-side.sh <carla-gs binary> <gsplat wheel> <fox dir> <out dir> [scale] [iters list]
 # e.g. tools/bench/train-side-by-side.sh .device-bin/carla-gs .device-bin/gsplat-1.5.3-py3-none-any.whl \
 #        .device-bin/fox "$OUT/train" 0.5 7000,30000
+# A device command may run 10 minutes at most: run one count per call into the same <out dir> outside
+# the carried paths (e.g. out/train, kept while the machine stays warm); the scene and the initial model
+# are reused, and the table lists every count done so far.
 # Steps: ingest the fox with our binary; write our initial model (`train --stop-after 0`: the random
 # start, background.ply); per iteration count N, train ours (`train --iters N --device cuda`, the
 # schedule is fractions of N) and score it (`eval-recon --json`), then train gsplat from that
@@ -66,9 +69,12 @@ for n in $(echo "$iters" | tr ',' ' '); do
     --iters "$n" --out "$out/gsplat-$n.json" ${GSPLAT_ARGS:-}
 done
 
-python3 - "$out" "$iters" <<'PY'
-import json, sys
-out, iters = sys.argv[1], [int(x) for x in sys.argv[2].split(",")]
+# The table covers every count with both results in <out dir> (a run split over calls gets one table).
+python3 - "$out" <<'PY'
+import glob, json, os, re, sys
+out = sys.argv[1]
+iters = sorted(int(re.search(r"gsplat-(\d+)\.json$", f).group(1)) for f in glob.glob(f"{out}/gsplat-*.json"))
+iters = [n for n in iters if os.path.exists(f"{out}/ours-{n}-eval.json")]
 mem = lambda f: (lambda a: int(a[0]) - int(a[1]))(open(f).read().split())
 lines = ["| iterations | tool | train loop (s) | it/s | Gaussians | peak GPU memory, nvidia-smi minus idle (MiB) | held-out PSNR (dB) | held-out SSIM |",
          "|---|---|---|---|---|---|---|---|"]
