@@ -21,7 +21,8 @@
 # torch.cuda.max_memory_allocated (tensors only) is reported too.
 # GSPLAT_ARGS (environment) is passed to gsplat_train.py, e.g. GSPLAT_ARGS=--no-opacity-reset for stock
 # gsplat 1.5.3 (its DefaultStrategy never resets opacities; by default the script resets them as we do).
-# Our checkpoints are off during the timed run (checkpoint_interval = 0, a file written here), so
+# ONLY=ours or ONLY=gsplat runs one tool (a long count split over two back-to-back calls on one warm
+# machine). Our checkpoints are off during the timed run (checkpoint_interval = 0, a file written here), so
 # ours does not pay for disk writes that gsplat does not do; the model is still written at the end.
 set -euo pipefail
 bin="$1"; wheel="$2"; fox="$3"; out="$4"; scale="${5:-0.5}"; iters="${6:-7000,30000}"
@@ -59,12 +60,15 @@ python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["scale"]; assert s =
 printf 'checkpoint_interval = 0\n' > "$out/no-checkpoints.toml"
 
 for n in $(echo "$iters" | tr ',' ' '); do
+  if [ "${ONLY:-}" != gsplat ]; then
   t0=$(date +%s.%N)
   sample_peak "$out/ours-$n.gpu-mem" "$bin" train "$out/scene" --out "$out/ours-$n" --config "$out/no-checkpoints.toml" \
     --scale "$scale" --iters "$n" --device cuda
   t1=$(date +%s.%N)
   echo "$t0 $t1" > "$out/ours-$n.wall"
   "$bin" eval-recon "$out/ours-$n" "$out/scene" --json --device cuda > "$out/ours-$n-eval.json"
+  fi
+  [ "${ONLY:-}" = ours ] && continue
   sample_peak "$out/gsplat-$n.gpu-mem" python3 "$here/gsplat_train.py" --scene "$out/scene" --init "$out/init" \
     --iters "$n" --out "$out/gsplat-$n.json" ${GSPLAT_ARGS:-}
 done
