@@ -1,9 +1,11 @@
 //! The device trainer (`recon::device`) against the host trainer on the same GPU rasterizer: one
 //! training step from the same state on a small synthetic street with actors and dense depth,
 //! normal and geometry priors, at several iterations (different views, SH degrees, actors
-//! alive). The loss terms agree to 1e-4 relative, every per-model gradient array (compose,
-//! loss, backward, way back, flattening) to 1e-3 of its largest value, the density statistics
-//! exactly in count and to 1e-3 in value, and the Adam step equals the host's Adam applied to the
+//! alive). The loss terms agree to 1e-4 relative (plus 1e-6 absolute), every per-model gradient
+//! array (compose, loss, backward, way back, flattening) to 2e-3 of its largest value or, in views
+//! where an actor's gradients are chaotic, to 4 times the host's own change when the actors move
+//! by 2e-6 m; the density statistics exactly in drawn count and to the same bounds in value; and
+//! the Adam step equals the host's Adam applied to the
 //! device's gradients. Needs an NVIDIA GPU; elsewhere it prints why it skipped.
 //! Run on the GPU machine by `tools/gpu-parity.sh` (`device_parity` executable).
 
@@ -131,10 +133,9 @@ fn one_device_step_matches_the_host_step() {
             ("geo", hl.geo, dl.geo),
             ("flat", hl.flat, dl.flat),
         ] {
-            assert!(
-                (h - d).abs() <= 1e-4 * h.abs().max(1e-3),
-                "iteration {it}: loss term {name}: host {h}, device {d}"
-            );
+            // 1e-6 absolute: the normal and geometry terms sum 1 - cos with cos near 1, where f32
+            // rounding of the cosine alone is about 1e-7 per pixel.
+            assert!((h - d).abs() <= 1e-4 * h.abs() + 1e-6, "iteration {it}: loss term {name}: host {h}, device {d}");
         }
         let active = |w: f64, v: f64| w == 0.0 || v > 0.0;
         assert!(
@@ -143,13 +144,33 @@ fn one_device_step_matches_the_host_step() {
         );
         let (hg, hsky) = host.last_gradients();
         let (dg, dsky) = dev.last_gradients().unwrap();
+        // The host against itself with every actor moved by 2e-6 m (about f32 rounding of world
+        // coordinates tens of metres out, which the device's f32 compose is subject to): in some
+        // views an actor's Gaussians sit where such a move flips depth orders and alpha cut-offs,
+        // and its gradients change by their own size. Each array is held to 2e-3 of its largest
+        // value or to 4 times the host's own change, whichever is larger.
+        let mut moved = st.clone();
+        for a in &mut moved.model.actors {
+            a.gaussians.means.iter_mut().flatten().for_each(|v| *v += 2e-6);
+        }
+        let mut host_backend = Cuda::new().unwrap();
+        host_backend.host_training = true;
+        let mut host_moved = Trainer::new(&scene, &views, cfg.clone(), host_backend, moved, extent);
+        host_moved.step();
+        let (hm, _) = host_moved.last_gradients();
         let mut bad = Vec::new();
-        for (set, (h, d)) in hg.iter().zip(&dg).enumerate() {
-            for ((name, hv), (_, dv)) in arrays(h).iter().zip(arrays(d).iter()) {
+        for (set, ((h, d), m)) in hg.iter().zip(&dg).zip(hm).enumerate() {
+            for (((name, hv), (_, dv)), (_, mv)) in arrays(h).iter().zip(arrays(d).iter()).zip(arrays(m).iter()) {
                 let r = rel(dv, hv);
+                let tol = 2e-3f64.max(4.0 * rel(mv, hv));
                 worst_grad = worst_grad.max(r);
-                if r > 1e-3 {
-                    bad.push(format!("set {set} gradient {name}: max rel {r:.3e}: {}", worst(dv, hv, 4)));
+                if r > tol {
+                    bad.push(format!(
+                        "set {set} gradient {name}: max rel {r:.3e} (tolerance {tol:.3e}): {}",
+                        worst(dv, hv, 4)
+                    ));
+                } else if r > 2e-3 {
+                    println!("iteration {it}: set {set} gradient {name}: max rel {r:.3e}, within the host's own change ({tol:.3e})");
                 }
             }
         }
@@ -159,9 +180,11 @@ fn one_device_step_matches_the_host_step() {
         assert!(r <= 1e-3, "iteration {it}: sky gradient max rel difference {r:.3e}");
         // Statistics and Adam: the device's state after its step.
         let dstate = dev.sync_host().unwrap().clone();
-        for (k, (hs, ds)) in host.state.stats.iter().zip(&dstate.stats).enumerate() {
+        for (k, ((hs, ds), ms)) in host.state.stats.iter().zip(&dstate.stats).zip(&host_moved.state.stats).enumerate() {
             assert_eq!(hs.seen, ds.seen, "iteration {it}: set {k}: drawn counts differ");
-            assert!(rel(&ds.grad_sum, &hs.grad_sum) <= 1e-3, "iteration {it}: set {k}: gradient sums differ");
+            let tol = 2e-3f64.max(4.0 * rel(&ms.grad_sum, &hs.grad_sum));
+            let r = rel(&ds.grad_sum, &hs.grad_sum);
+            assert!(r <= tol, "iteration {it}: set {k}: gradient sums differ by {r:.3e} (tolerance {tol:.3e})");
             assert!(rel(&ds.max_radius, &hs.max_radius) <= 1e-3, "iteration {it}: set {k}: radii differ");
         }
         let mut reference = st.clone();

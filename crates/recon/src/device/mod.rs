@@ -52,6 +52,8 @@ pub struct DeviceTrainer<'a> {
     targets: Vec<Option<ViewTargets>>,
     scratch: loss::Scratch,
     train_views: Vec<usize>,
+    /// Seconds spent in density control on the host (copies both ways included) and how often.
+    host_density: (f64, usize),
 }
 
 fn dev(e: DriverError) -> ReconError {
@@ -94,11 +96,17 @@ impl<'a> DeviceTrainer<'a> {
             dm,
             targets,
             scratch,
+            host_density: (0.0, 0),
         })
     }
 
     pub fn next_iteration(&self) -> usize {
         self.state.next_iteration
+    }
+
+    /// Seconds spent so far in density control on the host (both copies included), and how many times.
+    pub fn host_density_seconds(&self) -> (f64, usize) {
+        self.host_density
     }
 
     /// Brings the device's model, moments and statistics to the host copy and returns it.
@@ -163,9 +171,12 @@ impl<'a> DeviceTrainer<'a> {
         self.host_current = false;
         let n = it + 1;
         let densified = if density_due(&self.cfg, n) {
+            let t0 = std::time::Instant::now();
             self.sync_host()?;
             let c = density_control(&mut self.state, &self.cfg, self.extent, n);
             self.dm = DeviceModel::upload(&s, &self.state)?;
+            self.host_density.0 += t0.elapsed().as_secs_f64();
+            self.host_density.1 += 1;
             c
         } else {
             None
