@@ -1,0 +1,329 @@
+//! Lane geometry for map-aware plans: a vehicle's lane found on the map (`scene.map.lanes`, WOMD
+//! lane centrelines), chained with its successors into one reference path, and Frenet coordinates
+//! on it (arc length `s`, lateral offset `d`, + left) and back.
+//!
+//! WOMD lanes are short polylines (median about 12 m, a point every 0.5 m) with no connectivity
+//! stored, so a successor is a lane starting within [`JOIN_M`] of where the chain ends, heading the
+//! same way; at a fork the one passing nearest the plan's target is taken. The chain is
+//! resampled every [`STEP_M`], smoothed (joins between lanes are not exactly tangent) and extended
+//! straight at both ends, so that every point of a plan projects inside it.
+//!
+//! The normal is interpolated along each segment between the (unit) tangents at its ends, so
+//! `world(s, d) = R(s) + d N(s)` is continuous for any `d` and [`LanePath::frenet`] is its exact
+//! inverse (a plan ends exactly on its target). Valid where `|d|` is well below the radius of
+//! curvature (a few metres on roads, tens of metres of radius).
+
+use scene::glam::DVec2;
+use scene::map::{Map, Polyline};
+
+/// A lane is the vehicle's when its centreline passes within this distance (m) ...
+pub const MAX_LANE_DISTANCE_M: f64 = 2.0;
+/// ... heading within this angle (rad, 30 degrees) of the vehicle's.
+pub const MAX_LANE_HEADING_RAD: f64 = std::f64::consts::PI / 6.0;
+/// A lane continues another when it starts within this distance (m) of its end.
+pub const JOIN_M: f64 = 1.0;
+/// Spacing of the resampled reference path (m).
+pub const STEP_M: f64 = 1.0;
+/// Straight extension before the first and after the last lane point (m).
+const EXTEND_M: f64 = 60.0;
+/// Most lanes chained into one path.
+const MAX_CHAIN: usize = 60;
+
+fn wrap(a: f64) -> f64 {
+    a.sin().atan2(a.cos())
+}
+
+fn points(l: &Polyline) -> Vec<DVec2> {
+    let mut out: Vec<DVec2> = Vec::with_capacity(l.points.len());
+    for p in &l.points {
+        let p = p.truncate();
+        if p.is_finite() && out.last().is_none_or(|q: &DVec2| q.distance(p) > 1e-6) {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// Distance from `p` to polyline `pts`, and the polyline's heading there (rad).
+fn nearest_on(pts: &[DVec2], p: DVec2) -> Option<(f64, f64)> {
+    pts.windows(2)
+        .map(|w| {
+            let e = w[1] - w[0];
+            let u = ((p - w[0]).dot(e) / e.length_squared()).clamp(0.0, 1.0);
+            ((w[0] + e * u).distance(p), e.to_angle())
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+}
+
+/// The lane of a vehicle at `p` moving (or facing) along `heading`: the nearest centreline
+/// within [`MAX_LANE_DISTANCE_M`] whose local heading is within [`MAX_LANE_HEADING_RAD`]; its
+/// index in `map.lanes` and distance. Ties go to the lower index (deterministic).
+pub fn lane_of(map: &Map, p: DVec2, heading: f64) -> Option<(usize, f64)> {
+    map.lanes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let (d, h) = nearest_on(&points(l), p)?;
+            (d <= MAX_LANE_DISTANCE_M && wrap(h - heading).abs() <= MAX_LANE_HEADING_RAD).then_some((i, d))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+}
+
+/// The nearest point on a centreline heading within [`MAX_LANE_HEADING_RAD`] of `heading` and
+/// within [`MAX_LANE_DISTANCE_M`] of `p` (to put a target on its lane's centre).
+pub fn centreline_point(map: &Map, p: DVec2, heading: f64) -> Option<DVec2> {
+    let (i, _) = lane_of(map, p, heading)?;
+    let path = LanePath::from_points(points(&map.lanes[i]), vec![map.lanes[i].id])?;
+    let f = path.frenet(p);
+    Some(path.world(f.x, 0.0))
+}
+
+/// A smooth reference path along chained lane centrelines.
+#[derive(Clone, Debug)]
+pub struct LanePath {
+    pts: Vec<DVec2>,
+    /// Arc length at each point.
+    s: Vec<f64>,
+    /// Unit tangent at each point.
+    tangent: Vec<DVec2>,
+    /// Map ids of the lanes chained (first = the vehicle's).
+    pub lane_ids: Vec<i64>,
+}
+
+impl LanePath {
+    /// Lane `start` of `map` and its successors, chained until the path reaches `ahead_m` past
+    /// `from` (m along it), at each fork the successor passing nearest `toward`.
+    pub fn chain(map: &Map, start: usize, from: DVec2, toward: DVec2, ahead_m: f64) -> Option<LanePath> {
+        let lanes: Vec<Vec<DVec2>> = map.lanes.iter().map(points).collect();
+        let mut pts = lanes.get(start)?.clone();
+        let mut ids = vec![map.lanes[start].id];
+        let mut used = vec![start];
+        let start_s = {
+            let k = (0..pts.len()).min_by(|a, b| pts[*a].distance(from).total_cmp(&pts[*b].distance(from)))?;
+            pts.windows(2).take(k).map(|w| w[0].distance(w[1])).sum::<f64>()
+        };
+        let mut length: f64 = pts.windows(2).map(|w| w[0].distance(w[1])).sum();
+        while length - start_s < ahead_m && used.len() < MAX_CHAIN {
+            let n = pts.len();
+            if n < 2 {
+                break;
+            }
+            let (end, end_h) = (pts[n - 1], (pts[n - 1] - pts[n - 2]).to_angle());
+            let next = lanes
+                .iter()
+                .enumerate()
+                .filter(|(i, l)| !used.contains(i) && l.len() >= 2 && l[0].distance(end) <= JOIN_M)
+                .filter(|(_, l)| wrap((l[1] - l[0]).to_angle() - end_h).abs() <= MAX_LANE_HEADING_RAD)
+                .map(|(i, l)| (i, nearest_on(l, toward).map_or(f64::INFINITY, |n| n.0)))
+                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            let Some((i, _)) = next else { break };
+            used.push(i);
+            ids.push(map.lanes[i].id);
+            let skip = usize::from(lanes[i][0].distance(end) < 1e-3);
+            length += end.distance(lanes[i][skip]) + lanes[i].windows(2).map(|w| w[0].distance(w[1])).sum::<f64>();
+            pts.extend(lanes[i].iter().skip(skip));
+        }
+        LanePath::from_points(pts, ids)
+    }
+
+    /// Resampled every [`STEP_M`], smoothed and extended straight at both ends.
+    fn from_points(raw: Vec<DVec2>, lane_ids: Vec<i64>) -> Option<LanePath> {
+        if raw.len() < 2 {
+            return None;
+        }
+        let mut cum = vec![0.0];
+        for w in raw.windows(2) {
+            cum.push(cum[cum.len() - 1] + w[0].distance(w[1]));
+        }
+        let total = cum[cum.len() - 1];
+        if total < STEP_M {
+            return None;
+        }
+        let n = (total / STEP_M).ceil() as usize;
+        let at = |s: f64| {
+            let i = cum.partition_point(|c| *c < s).clamp(1, raw.len() - 1);
+            let u = ((s - cum[i - 1]) / (cum[i] - cum[i - 1]).max(1e-12)).clamp(0.0, 1.0);
+            raw[i - 1].lerp(raw[i], u)
+        };
+        let mut pts: Vec<DVec2> = (0..=n).map(|k| at(total * k as f64 / n as f64)).collect();
+        // Two passes of a [1/4, 1/2, 1/4] filter (end points fixed): shifts a 50 m radius inwards
+        // by millimetres, removes the kinks at lane joins.
+        for _ in 0..2 {
+            let prev = pts.clone();
+            for k in 1..pts.len() - 1 {
+                pts[k] = 0.25 * prev[k - 1] + 0.5 * prev[k] + 0.25 * prev[k + 1];
+            }
+        }
+        let head = (pts[1] - pts[0]).normalize();
+        let tail = (pts[pts.len() - 1] - pts[pts.len() - 2]).normalize();
+        let steps = (EXTEND_M / STEP_M) as usize;
+        let mut ext: Vec<DVec2> = (1..=steps).rev().map(|k| pts[0] - head * (k as f64 * STEP_M)).collect();
+        let last = pts[pts.len() - 1];
+        ext.extend(pts);
+        ext.extend((1..=steps).map(|k| last + tail * (k as f64 * STEP_M)));
+        let mut s = vec![0.0];
+        for w in ext.windows(2) {
+            s.push(s[s.len() - 1] + w[0].distance(w[1]));
+        }
+        let m = ext.len();
+        let tangent =
+            (0..m).map(|k| (ext[(k + 1).min(m - 1)] - ext[k.saturating_sub(1)]).normalize()).collect::<Vec<DVec2>>();
+        tangent.iter().all(|t| t.is_finite()).then_some(LanePath { pts: ext, s, tangent, lane_ids })
+    }
+
+    pub fn length(&self) -> f64 {
+        self.s[self.s.len() - 1]
+    }
+
+    fn segment(&self, s: f64) -> (usize, f64) {
+        let i = self.s.partition_point(|c| *c < s).clamp(1, self.s.len() - 1);
+        let u = (s - self.s[i - 1]) / (self.s[i] - self.s[i - 1]);
+        (i - 1, u)
+    }
+
+    /// Unit tangent at arc length `s` (interpolated between the points' tangents).
+    pub fn tangent(&self, s: f64) -> DVec2 {
+        let (i, u) = self.segment(s);
+        self.tangent[i].lerp(self.tangent[i + 1], u.clamp(0.0, 1.0)).normalize()
+    }
+
+    /// World point at Frenet `(s, d)` (m, `d` + left); beyond the ends the path continues straight.
+    pub fn world(&self, s: f64, d: f64) -> DVec2 {
+        let (i, u) = self.segment(s);
+        let base = self.pts[i].lerp(self.pts[i + 1], u);
+        let t = self.tangent[i].lerp(self.tangent[i + 1], u.clamp(0.0, 1.0)).normalize();
+        base + t.perp() * d
+    }
+
+    /// Frenet `(s, d)` of world point `p` (the nearest foot point; exact inverse of [`Self::world`]).
+    pub fn frenet(&self, p: DVec2) -> DVec2 {
+        let mut best = (f64::INFINITY, DVec2::ZERO);
+        for i in 0..self.pts.len() - 1 {
+            let (a, e) = (self.pts[i], self.pts[i + 1] - self.pts[i]);
+            let (t0, dt) = (self.tangent[i], self.tangent[i + 1] - self.tangent[i]);
+            // (p - a - u e) . (t0 + u dt) = 0, a quadratic in u.
+            let q = p - a;
+            let (qa, qb, qc) = (-e.dot(dt), q.dot(dt) - e.dot(t0), q.dot(t0));
+            let mut roots = Vec::with_capacity(2);
+            if qa.abs() < 1e-12 {
+                if qb.abs() > 1e-12 {
+                    roots.push(-qc / qb);
+                }
+            } else {
+                let disc = qb * qb - 4.0 * qa * qc;
+                if disc >= 0.0 {
+                    let r = disc.sqrt();
+                    roots.extend([(-qb + r) / (2.0 * qa), (-qb - r) / (2.0 * qa)]);
+                }
+            }
+            // Two Newton steps polish the root (the quadratic formula loses digits).
+            let polish = |mut u: f64| {
+                for _ in 0..2 {
+                    let r = q - e * u;
+                    let g = r.dot(t0 + dt * u);
+                    let dg = -e.dot(t0 + dt * u) + r.dot(dt);
+                    if dg.abs() > 1e-12 {
+                        u -= g / dg;
+                    }
+                }
+                u
+            };
+            for u in roots.into_iter().map(polish).filter(|u| (-1e-9..=1.0 + 1e-9).contains(u)) {
+                let s = self.s[i] + u.clamp(0.0, 1.0) * (self.s[i + 1] - self.s[i]);
+                let foot = a + e * u;
+                let d = (p - foot).dot(t0.lerp(self.tangent[i + 1], u).normalize().perp());
+                if d.abs() < best.0 {
+                    best = (d.abs(), DVec2::new(s, d));
+                }
+            }
+        }
+        if best.0.is_finite() {
+            return best.1;
+        }
+        // Off both ends' normals (only far outside the extensions): the nearest point.
+        let k = (0..self.pts.len()).min_by(|a, b| self.pts[*a].distance(p).total_cmp(&self.pts[*b].distance(p)));
+        let k = k.unwrap_or(0);
+        DVec2::new(self.s[k], (p - self.pts[k]).dot(self.tangent[k].perp()))
+    }
+
+    /// Frenet rates `(s', d')` of a world velocity `v` at Frenet `(s, d)` (the Jacobian of
+    /// [`Self::world`] by central differences, inverted).
+    pub fn frenet_velocity(&self, f: DVec2, v: DVec2) -> DVec2 {
+        let h = 1e-3;
+        let js = (self.world(f.x + h, f.y) - self.world(f.x - h, f.y)) / (2.0 * h);
+        let jd = (self.world(f.x, f.y + h) - self.world(f.x, f.y - h)) / (2.0 * h);
+        let det = js.perp_dot(jd);
+        if det.abs() < 1e-9 {
+            return DVec2::new(v.dot(js), v.dot(jd));
+        }
+        DVec2::new(v.perp_dot(jd) / det, js.perp_dot(v) / det)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scene::glam::DVec3;
+
+    /// An arc of radius `r` about the origin from angle `a0` to `a1` (rad, counter-clockwise),
+    /// a point every 0.5 m, as lanes of about `piece` m.
+    fn arc_lanes(first_id: i64, r: f64, a0: f64, a1: f64, piece: f64) -> Vec<Polyline> {
+        let n = ((a1 - a0) * r / 0.5).ceil() as usize;
+        let all: Vec<DVec3> = (0..=n)
+            .map(|k| {
+                let a = a0 + (a1 - a0) * k as f64 / n as f64;
+                DVec3::new(r * a.cos(), r * a.sin(), 0.0)
+            })
+            .collect();
+        let per = ((piece / 0.5) as usize).max(1);
+        all.chunks(per)
+            .enumerate()
+            .map(|(i, c)| {
+                // Each piece starts at the previous one's last point (WOMD lanes share end points).
+                let mut pts = if i > 0 { vec![all[i * per - 1]] } else { vec![] };
+                pts.extend_from_slice(c);
+                Polyline { id: first_id + i as i64, points: pts }
+            })
+            .filter(|p| p.points.len() >= 2)
+            .collect()
+    }
+
+    #[test]
+    fn frenet_round_trip_on_a_chained_arc() {
+        // Radius 60 m, counter-clockwise from angle -0.5 to 1.0, in 10 m pieces, listed shuffled.
+        let mut lanes = arc_lanes(100, 60.0, -0.5, 1.0, 10.0);
+        lanes.reverse();
+        let map = Map { lanes, ..Default::default() };
+        let start = DVec2::new(60.0 * (-0.45f64).cos(), 60.0 * (-0.45f64).sin());
+        let heading = -0.45 + std::f64::consts::FRAC_PI_2;
+        let (i, dist) = lane_of(&map, start + DVec2::new(0.3, 0.0), heading).expect("on the lane");
+        assert!(dist < 0.31, "{dist}");
+        assert_eq!(lane_of(&map, start, heading + std::f64::consts::PI), None, "wrong way");
+        assert_eq!(lane_of(&map, start * 1.05, heading), None, "3 m off");
+        let toward = DVec2::new(60.0 * 0.9f64.cos(), 60.0 * 0.9f64.sin());
+        let path = LanePath::chain(&map, i, start, toward, 80.0).expect("path");
+        assert!(path.lane_ids.len() >= 8, "{:?}", path.lane_ids);
+        // Arc length along, offsets from the circle's radius (+ left = inwards), both ways.
+        let s_start = path.frenet(start).x;
+        for (a, r) in [(-0.2, 60.0), (0.3, 56.4), (0.8, 63.0)] {
+            let p = DVec2::new(r * f64::cos(a), r * f64::sin(a));
+            let f = path.frenet(p);
+            assert!((f.y - (60.0 - r)).abs() < 0.02, "d {f} at {a}");
+            assert!((f.x - s_start - 60.0 * (a + 0.45)).abs() < 0.1, "s {f} at {a}");
+            assert!(path.world(f.x, f.y).distance(p) < 1e-9);
+        }
+        // A velocity along the circle at radius 56.4 m: s' scales by 60/56.4, d' = 0.
+        let p = DVec2::new(56.4 * 0.3f64.cos(), 56.4 * 0.3f64.sin());
+        let v = DVec2::new(-(0.3f64.sin()), 0.3f64.cos()) * 10.0;
+        let fv = path.frenet_velocity(path.frenet(p), v);
+        assert!((fv.x - 10.0 * 60.0 / 56.4).abs() < 0.05 && fv.y.abs() < 0.05, "{fv}");
+    }
+
+    #[test]
+    fn centreline_point_snaps_sideways() {
+        let map = Map { lanes: arc_lanes(1, 60.0, -0.5, 1.0, 10.0), ..Default::default() };
+        let p = DVec2::new(59.0, 1.0);
+        let c = centreline_point(&map, p, std::f64::consts::FRAC_PI_2).expect("near a lane");
+        assert!((c.length() - 60.0).abs() < 0.01 && c.normalize().dot(p.normalize()) > 0.9999, "{c}");
+    }
+}
