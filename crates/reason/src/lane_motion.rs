@@ -18,11 +18,10 @@
 //! straight-line quintic and records which path it used.
 
 use crate::from_rest::FromRest;
-use crate::lanes::{lane_of, LanePath};
+use crate::lanes::{LanePath, Lanes};
 use crate::quintic::{End, Quintic};
 use crate::world::Vehicle;
 use scene::glam::DVec2;
-use scene::map::Map;
 use scene::Waypoint;
 
 /// A lateral move larger than this (m) is a lane change, made at the end of the plan.
@@ -61,7 +60,7 @@ impl LaneMotion {
     /// The motion of `v` from its state at t0 to `target`, reached after `duration` (s) with
     /// world velocity `v_end`; `start_accel` (m/s^2) for a vehicle at rest.
     pub fn new(
-        map: &Map,
+        lanes: &Lanes,
         v: &Vehicle,
         target: DVec2,
         v_end: DVec2,
@@ -70,11 +69,11 @@ impl LaneMotion {
     ) -> Result<LaneMotion, String> {
         let moving = v.now.speed() >= AT_REST;
         let heading = if moving { v.now.v.to_angle() } else { v.now.heading };
-        let Some((lane, _)) = lane_of(map, v.now.p, heading) else {
+        let Some((lane, _)) = lanes.lane_of(v.now.p, heading) else {
             return Err("no lane centre within 2 m heading within 30 degrees of the vehicle".into());
         };
         let ahead = v.now.p.distance(target) * 1.5 + 20.0;
-        let path = LanePath::chain(map, lane, v.now.p, target, ahead).ok_or("its lane has no length")?;
+        let path = LanePath::chain(lanes.map, lane, v.now.p, target, ahead).ok_or("its lane has no length")?;
         let (f0, f1) = (path.frenet(v.now.p), path.frenet(target));
         if f1.x <= f0.x + 0.5 {
             return Err("the target is not ahead of the vehicle along its lane".into());
@@ -151,7 +150,7 @@ mod tests {
     use super::*;
     use crate::world::Kin;
     use scene::glam::DVec3;
-    use scene::map::Polyline;
+    use scene::map::{Map, Polyline};
     use std::f64::consts::FRAC_PI_2;
 
     /// A left-hand curve (counter-clockwise about the origin), lanes of 10 m at radii `radii`.
@@ -190,7 +189,7 @@ mod tests {
         let a1 = 1.3;
         let target = DVec2::new(28.2 * f64::cos(a1), 28.2 * f64::sin(a1));
         let v_end = DVec2::from_angle(a1 + FRAC_PI_2) * 2.0;
-        let m = LaneMotion::new(&map, &v, target, v_end, 4.0, 2.0).expect("on a lane");
+        let m = LaneMotion::new(&Lanes::new(&map).unwrap(), &v, target, v_end, 4.0, 2.0).expect("on a lane");
         let w = m.waypoints(1.0, 0.1);
         assert_eq!(w.len(), 41);
         assert!((w[40].t - 5.0).abs() < 1e-9 && DVec2::new(w[40].x, w[40].y).distance(target) < 1e-12);
@@ -213,16 +212,17 @@ mod tests {
     fn no_lane_plan_off_the_lanes_the_wrong_way_or_behind() {
         let map = curve(&[30.0]);
         let target = DVec2::new(30.0 * 0.8f64.cos(), 30.0 * 0.8f64.sin());
-        let ok = LaneMotion::new(&map, &car_on(30.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
+        let ok = LaneMotion::new(&Lanes::new(&map).unwrap(), &car_on(30.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
         assert!(ok.is_ok());
-        let off = LaneMotion::new(&map, &car_on(33.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
+        let off = LaneMotion::new(&Lanes::new(&map).unwrap(), &car_on(33.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
         assert!(off.unwrap_err().contains("no lane centre within 2 m"));
         let mut back = car_on(30.0, 0.0, 8.0);
         back.now.v = -back.now.v;
         back.now.heading += std::f64::consts::PI;
-        assert!(LaneMotion::new(&map, &back, target, DVec2::ZERO, 3.0, 2.0).is_err());
+        assert!(LaneMotion::new(&Lanes::new(&map).unwrap(), &back, target, DVec2::ZERO, 3.0, 2.0).is_err());
         let behind = DVec2::new(30.0 * (-0.3f64).cos(), 30.0 * (-0.3f64).sin());
-        let e = LaneMotion::new(&map, &car_on(30.0, 0.0, 8.0), behind, DVec2::ZERO, 3.0, 2.0).unwrap_err();
+        let e = LaneMotion::new(&Lanes::new(&map).unwrap(), &car_on(30.0, 0.0, 8.0), behind, DVec2::ZERO, 3.0, 2.0)
+            .unwrap_err();
         assert!(e.contains("not ahead"), "{e}");
     }
 
@@ -231,9 +231,15 @@ mod tests {
         let map = curve(&[30.0]);
         let a1 = 0.9;
         let target = DVec2::new(30.0 * f64::cos(a1), 30.0 * f64::sin(a1));
-        let m =
-            LaneMotion::new(&map, &car_on(30.0, 0.0, 0.0), target, DVec2::from_angle(a1 + FRAC_PI_2) * 6.0, 4.0, 2.0)
-                .expect("at rest on a lane");
+        let m = LaneMotion::new(
+            &Lanes::new(&map).unwrap(),
+            &car_on(30.0, 0.0, 0.0),
+            target,
+            DVec2::from_angle(a1 + FRAC_PI_2) * 6.0,
+            4.0,
+            2.0,
+        )
+        .expect("at rest on a lane");
         for w in m.waypoints(0.0, 0.1) {
             let r = DVec2::new(w.x, w.y).length();
             assert!((r - 30.0).abs() < 0.05, "t {:.1}: r {r:.3}", w.t);

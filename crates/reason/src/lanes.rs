@@ -44,38 +44,84 @@ fn points(l: &Polyline) -> Vec<DVec2> {
     out
 }
 
-/// Distance from `p` to polyline `pts`, and the polyline's heading there (rad).
-fn nearest_on(pts: &[DVec2], p: DVec2) -> Option<(f64, f64)> {
-    pts.windows(2)
-        .map(|w| {
-            let e = w[1] - w[0];
-            let u = ((p - w[0]).dot(e) / e.length_squared()).clamp(0.0, 1.0);
-            ((w[0] + e * u).distance(p), e.to_angle())
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
+/// Distance from `p` to polyline `l` (ground plane), and the polyline's heading there (rad).
+/// Runs over the map's points without copying them, in plain arithmetic (the planner asks for
+/// every candidate, over every lane of the map).
+fn nearest_on(l: &Polyline, p: DVec2) -> Option<(f64, f64)> {
+    let mut best = (f64::INFINITY, 0.0, 0.0);
+    for w in l.points.windows(2) {
+        let (ax, ay, ex, ey) = (w[0].x, w[0].y, w[1].x - w[0].x, w[1].y - w[0].y);
+        let len2 = ex * ex + ey * ey;
+        if !(len2 > 1e-12) {
+            continue;
+        }
+        let u = (((p.x - ax) * ex + (p.y - ay) * ey) / len2).clamp(0.0, 1.0);
+        let (dx, dy) = (ax + ex * u - p.x, ay + ey * u - p.y);
+        let d2 = dx * dx + dy * dy;
+        if d2 < best.0 {
+            best = (d2, ex, ey);
+        }
+    }
+    best.0.is_finite().then(|| (best.0.sqrt(), best.2.atan2(best.1)))
 }
 
-/// The lane of a vehicle at `p` moving (or facing) along `heading`: the nearest centreline
-/// within [`MAX_LANE_DISTANCE_M`] whose local heading is within [`MAX_LANE_HEADING_RAD`]; its
-/// index in `map.lanes` and distance. Ties go to the lower index (deterministic).
-pub fn lane_of(map: &Map, p: DVec2, heading: f64) -> Option<(usize, f64)> {
-    map.lanes
-        .iter()
-        .enumerate()
-        .filter_map(|(i, l)| {
-            let (d, h) = nearest_on(&points(l), p)?;
-            (d <= MAX_LANE_DISTANCE_M && wrap(h - heading).abs() <= MAX_LANE_HEADING_RAD).then_some((i, d))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+/// Start point and initial heading of a lane.
+fn start_of(l: &Polyline) -> Option<(DVec2, f64)> {
+    let a = l.points.first()?.truncate();
+    let b = l.points.iter().map(|p| p.truncate()).find(|b| b.distance(a) > 1e-6)?;
+    Some((a, (b - a).to_angle()))
 }
 
-/// The nearest point on a centreline heading within [`MAX_LANE_HEADING_RAD`] of `heading` and
-/// within [`MAX_LANE_DISTANCE_M`] of `p` (to put a target on its lane's centre).
-pub fn centreline_point(map: &Map, p: DVec2, heading: f64) -> Option<DVec2> {
-    let (i, _) = lane_of(map, p, heading)?;
-    let path = LanePath::from_points(points(&map.lanes[i]), vec![map.lanes[i].id])?;
-    let f = path.frenet(p);
-    Some(path.world(f.x, 0.0))
+/// A map's lanes with their bounding boxes, so that finding a vehicle's lane skips far lanes
+/// (the planner asks for every candidate). Built once per [`crate::world::World`].
+#[derive(Clone, Debug)]
+pub struct Lanes<'a> {
+    pub map: &'a Map,
+    /// `[min x, min y, max x, max y]` of each lane's points.
+    boxes: Vec<[f64; 4]>,
+}
+
+impl<'a> Lanes<'a> {
+    /// `None` when the map has no lanes.
+    pub fn new(map: &'a Map) -> Option<Lanes<'a>> {
+        let boxes = map
+            .lanes
+            .iter()
+            .map(|l| {
+                l.points.iter().fold([f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY], |b, p| {
+                    [b[0].min(p.x), b[1].min(p.y), b[2].max(p.x), b[3].max(p.y)]
+                })
+            })
+            .collect();
+        (!map.lanes.is_empty()).then_some(Lanes { map, boxes })
+    }
+
+    /// The lane of a vehicle at `p` moving (or facing) along `heading`: the nearest centreline
+    /// within [`MAX_LANE_DISTANCE_M`] whose local heading is within [`MAX_LANE_HEADING_RAD`]; its
+    /// index in `map.lanes` and distance. Ties go to the lower index (deterministic).
+    pub fn lane_of(&self, p: DVec2, heading: f64) -> Option<(usize, f64)> {
+        let m = MAX_LANE_DISTANCE_M;
+        self.map
+            .lanes
+            .iter()
+            .zip(&self.boxes)
+            .enumerate()
+            .filter(|(_, (_, b))| p.x >= b[0] - m && p.y >= b[1] - m && p.x <= b[2] + m && p.y <= b[3] + m)
+            .filter_map(|(i, (l, _))| {
+                let (d, h) = nearest_on(l, p)?;
+                (d <= m && wrap(h - heading).abs() <= MAX_LANE_HEADING_RAD).then_some((i, d))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+    }
+
+    /// The nearest point on a centreline heading within [`MAX_LANE_HEADING_RAD`] of `heading`
+    /// and within [`MAX_LANE_DISTANCE_M`] of `p` (to put a target on its lane's centre).
+    pub fn centreline_point(&self, p: DVec2, heading: f64) -> Option<DVec2> {
+        let (i, _) = self.lane_of(p, heading)?;
+        let path = LanePath::from_points(points(&self.map.lanes[i]), vec![self.map.lanes[i].id])?;
+        let f = path.frenet(p);
+        Some(path.world(f.x, 0.0))
+    }
 }
 
 /// A smooth reference path along chained lane centrelines.
@@ -94,8 +140,7 @@ impl LanePath {
     /// Lane `start` of `map` and its successors, chained until the path reaches `ahead_m` past
     /// `from` (m along it), at each fork the successor passing nearest `toward`.
     pub fn chain(map: &Map, start: usize, from: DVec2, toward: DVec2, ahead_m: f64) -> Option<LanePath> {
-        let lanes: Vec<Vec<DVec2>> = map.lanes.iter().map(points).collect();
-        let mut pts = lanes.get(start)?.clone();
+        let mut pts = points(map.lanes.get(start)?);
         let mut ids = vec![map.lanes[start].id];
         let mut used = vec![start];
         let start_s = {
@@ -109,19 +154,25 @@ impl LanePath {
                 break;
             }
             let (end, end_h) = (pts[n - 1], (pts[n - 1] - pts[n - 2]).to_angle());
-            let next = lanes
+            let next = map
+                .lanes
                 .iter()
                 .enumerate()
-                .filter(|(i, l)| !used.contains(i) && l.len() >= 2 && l[0].distance(end) <= JOIN_M)
-                .filter(|(_, l)| wrap((l[1] - l[0]).to_angle() - end_h).abs() <= MAX_LANE_HEADING_RAD)
+                .filter(|(i, l)| {
+                    !used.contains(i)
+                        && start_of(l).is_some_and(|(a, h)| {
+                            a.distance(end) <= JOIN_M && wrap(h - end_h).abs() <= MAX_LANE_HEADING_RAD
+                        })
+                })
                 .map(|(i, l)| (i, nearest_on(l, toward).map_or(f64::INFINITY, |n| n.0)))
                 .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             let Some((i, _)) = next else { break };
             used.push(i);
             ids.push(map.lanes[i].id);
-            let skip = usize::from(lanes[i][0].distance(end) < 1e-3);
-            length += end.distance(lanes[i][skip]) + lanes[i].windows(2).map(|w| w[0].distance(w[1])).sum::<f64>();
-            pts.extend(lanes[i].iter().skip(skip));
+            let more = points(&map.lanes[i]);
+            let skip = usize::from(more[0].distance(end) < 1e-3);
+            length += end.distance(more[skip]) + more.windows(2).map(|w| w[0].distance(w[1])).sum::<f64>();
+            pts.extend(more.into_iter().skip(skip));
         }
         LanePath::from_points(pts, ids)
     }
@@ -296,10 +347,11 @@ mod tests {
         let map = Map { lanes, ..Default::default() };
         let start = DVec2::new(60.0 * (-0.45f64).cos(), 60.0 * (-0.45f64).sin());
         let heading = -0.45 + std::f64::consts::FRAC_PI_2;
-        let (i, dist) = lane_of(&map, start + DVec2::new(0.3, 0.0), heading).expect("on the lane");
+        let index = Lanes::new(&map).expect("lanes");
+        let (i, dist) = index.lane_of(start + DVec2::new(0.3, 0.0), heading).expect("on the lane");
         assert!(dist < 0.31, "{dist}");
-        assert_eq!(lane_of(&map, start, heading + std::f64::consts::PI), None, "wrong way");
-        assert_eq!(lane_of(&map, start * 1.05, heading), None, "3 m off");
+        assert_eq!(index.lane_of(start, heading + std::f64::consts::PI), None, "wrong way");
+        assert_eq!(index.lane_of(start * 1.05, heading), None, "3 m off");
         let toward = DVec2::new(60.0 * 0.9f64.cos(), 60.0 * 0.9f64.sin());
         let path = LanePath::chain(&map, i, start, toward, 80.0).expect("path");
         assert!(path.lane_ids.len() >= 8, "{:?}", path.lane_ids);
@@ -323,7 +375,7 @@ mod tests {
     fn centreline_point_snaps_sideways() {
         let map = Map { lanes: arc_lanes(1, 60.0, -0.5, 1.0, 10.0), ..Default::default() };
         let p = DVec2::new(59.0, 1.0);
-        let c = centreline_point(&map, p, std::f64::consts::FRAC_PI_2).expect("near a lane");
+        let c = Lanes::new(&map).unwrap().centreline_point(p, std::f64::consts::FRAC_PI_2).expect("near a lane");
         assert!((c.length() - 60.0).abs() < 0.01 && c.normalize().dot(p.normalize()) > 0.9999, "{c}");
     }
 }

@@ -167,8 +167,8 @@ pub fn trajectory_to_aim(
     let v_end = end_velocity(end_policy(b, world, target, ttc), &ego_end, target, v, aim_ttc);
     let body = DVec2::new(v.now.heading.cos(), v.now.heading.sin());
     // Along the adversary's lane where the map has one near it; else a straight-line quintic.
-    let lane = match world.scene.map.as_ref().filter(|m| !m.lanes.is_empty()) {
-        Some(map) => LaneMotion::new(map, v, target, v_end, ttc, START_ACCEL),
+    let lane = match &world.lanes {
+        Some(lanes) => LaneMotion::new(lanes, v, target, v_end, ttc, START_ACCEL),
         None => Err("the scene has no lane map".to_string()),
     };
     let (motion, path, path_note) = match lane {

@@ -5,7 +5,6 @@
 //! planner moves a target in the front or back zone sideways onto the centreline of the lane it
 //! is in ([`on_lane_centre`]), so that a cut-in ends on the ego lane's centre.
 
-use crate::lanes::centreline_point;
 use crate::world::World;
 use rand::Rng;
 use scene::glam::DVec2;
@@ -26,12 +25,12 @@ pub fn sample_target(world: &World, zone: Zone, layout: ZoneLayout, ttc: f64, rn
 /// (within 2 m), if `zone` is the front or back zone and the moved point stays in the zone's
 /// inner part (the sampling margin); else `target` unchanged.
 pub fn on_lane_centre(world: &World, zone: Zone, layout: ZoneLayout, ttc: f64, target: DVec2) -> DVec2 {
-    let Some(map) = world.scene.map.as_ref().filter(|m| !m.lanes.is_empty()) else { return target };
+    let Some(lanes) = &world.lanes else { return target };
     if !matches!(zone, Zone::Front | Zone::Back) {
         return target;
     }
     let pose = world.ego_pose(world.t0 + ttc);
-    let Some(c) = centreline_point(map, target, pose.heading) else { return target };
+    let Some(c) = lanes.centreline_point(target, pose.heading) else { return target };
     let rect = zone_rect(zone, layout, world.ego_length, world.ego_width);
     let half = (rect.max - rect.min) * INNER_FRACTION / 2.0;
     let off = (pose.to_local(c) - rect.center()).abs();
