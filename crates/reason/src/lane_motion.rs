@@ -4,11 +4,14 @@
 //! * **Along the lane**, arc length `s(t)` is a quintic from the vehicle's state at t0 (speed
 //!   along the lane, zero acceleration) to the target's arc length with the end velocity's
 //!   component along the lane (zero acceleration), like [`crate::quintic`] per axis.
-//! * **Across it**, the lateral offset `d(t)` (+ left of the lane centre): a move of more than
-//!   [`LANE_CHANGE_M`] (a cut-in onto the next lane, a drift over the centre line, a side pass
-//!   closing in) first follows the lane, converging on its centreline, then changes lane in the
-//!   last [`LANE_CHANGE_S`] with a minimum-jerk (quintic) lateral profile; a smaller move (the
-//!   target in the vehicle's own lane: braking, tailgating) is one quintic over the whole plan.
+//! * **Across it**, the lateral offset `d` (+ left of the lane centre) is a function of arc
+//!   length, so that the path's shape does not depend on the speed (a car stopping at its target
+//!   arrives along the lane, not sideways): a move of more than [`LANE_CHANGE_M`] (a cut-in onto
+//!   the next lane, a drift over the centre line, a side pass closing in) first follows the lane,
+//!   converging on its centreline, then changes lane over the stretch it drives in the last
+//!   [`LANE_CHANGE_S`] (at least [`LANE_CHANGE_MIN_M`]), with a quintic lateral profile (zero slope and curvature at both ends, or
+//!   the end velocity's slope); a smaller move (the target in the vehicle's own lane: braking,
+//!   tailgating) is one quintic over the whole plan.
 //! * A vehicle slower than 1 m/s starts along its body, path first ([`crate::from_rest`]), the
 //!   path built in `(s, d)`, so that it too bends with the road.
 //!
@@ -28,12 +31,16 @@ use scene::Waypoint;
 pub const LANE_CHANGE_M: f64 = 1.0;
 /// Duration of a lane change (s); shorter plans change lane over their whole length.
 pub const LANE_CHANGE_S: f64 = 2.5;
+/// Shortest stretch of road a lane change takes (m): 3.6 m across in 20 m peaks at a curvature
+/// of 0.05 1/m (3.3 m/s^2 at 8 m/s).
+pub const LANE_CHANGE_MIN_M: f64 = 20.0;
 /// A target farther than this from the adversary's lane centre (m, 2.5 lanes) is not a lane move.
 pub const MAX_TARGET_OFFSET_M: f64 = 9.0;
 /// Below this speed (m/s) the vehicle starts along its body heading.
 const AT_REST: f64 = 1.0;
 
-/// `x` from `(x0, v0, 0)` to `(x1, v1, 0)` in `duration` (a quintic in the `x` component).
+/// `x` from `(x0, v0, 0)` to `(x1, v1, 0)` over `duration` (a quintic in the `x` component;
+/// "duration" is time for `s(t)` and arc length for `d(s)`).
 fn quintic_1d(x0: f64, v0: f64, x1: f64, v1: f64, duration: f64) -> Quintic {
     let e = |p: f64, v: f64| End { p: DVec2::new(p, 0.0), v: DVec2::new(v, 0.0), a: DVec2::ZERO };
     Quintic::new(e(x0, v0), e(x1, v1), duration)
@@ -41,8 +48,8 @@ fn quintic_1d(x0: f64, v0: f64, x1: f64, v1: f64, duration: f64) -> Quintic {
 
 #[derive(Clone, Debug)]
 enum Frenet {
-    /// `s(t)`; `d(t)` as `keep` on `[0, t1]`, then `change` on `[t1, duration]`.
-    Split { long: Quintic, keep: Option<Quintic>, change: Quintic, t1: f64 },
+    /// `s(t)`; `d(s)` as `keep(s - s0)` on `[s0, sa]`, then `change(s - sa)` from `sa` on.
+    Split { long: Quintic, keep: Option<Quintic>, change: Quintic, s0: f64, sa: f64 },
     /// From rest: a path in the `(s, d)` plane with its own speed profile.
     FromRest(FromRest),
 }
@@ -85,16 +92,23 @@ impl LaneMotion {
         let frenet = if moving {
             let fv0 = path.frenet_velocity(f0, v.now.v);
             let long = quintic_1d(f0.x, fv0.x, f1.x, fv1.x, duration);
-            if (f1.y - f0.y).abs() > LANE_CHANGE_M && duration > LANE_CHANGE_S {
-                let t1 = duration - LANE_CHANGE_S;
+            // Lateral slopes dd/ds at both ends (level where the motion along the lane is slow).
+            let slope = |f: DVec2| if f.x > 0.5 { (f.y / f.x).clamp(-0.5, 0.5) } else { 0.0 };
+            let (k0, k1) = (slope(fv0), slope(fv1));
+            // The lane change covers what the car drives in the last LANE_CHANGE_S, at least
+            // LANE_CHANGE_MIN_M (a car slowing to its target would otherwise swerve in metres).
+            let sa = long.position((duration - LANE_CHANGE_S).max(0.0)).x.min(f1.x - LANE_CHANGE_MIN_M);
+            if (f1.y - f0.y).abs() > LANE_CHANGE_M && duration > LANE_CHANGE_S && sa > f0.x + 1.0 && sa < f1.x - 1.0 {
                 Frenet::Split {
                     long,
-                    keep: Some(quintic_1d(f0.y, fv0.y, 0.0, 0.0, t1)),
-                    change: quintic_1d(0.0, 0.0, f1.y, fv1.y, LANE_CHANGE_S),
-                    t1,
+                    keep: Some(quintic_1d(f0.y, k0, 0.0, 0.0, sa - f0.x)),
+                    change: quintic_1d(0.0, 0.0, f1.y, k1, f1.x - sa),
+                    s0: f0.x,
+                    sa,
                 }
             } else {
-                Frenet::Split { long, keep: None, change: quintic_1d(f0.y, fv0.y, f1.y, fv1.y, duration), t1: 0.0 }
+                let change = quintic_1d(f0.y, k0, f1.y, k1, f1.x - f0.x);
+                Frenet::Split { long, keep: None, change, s0: f0.x, sa: f0.x }
             }
         } else {
             let body = DVec2::from_angle(v.now.heading);
@@ -110,12 +124,13 @@ impl LaneMotion {
     /// `(s, d)` at time `t` after t0 (s).
     fn frenet_at(&self, t: f64) -> DVec2 {
         match &self.frenet {
-            Frenet::Split { long, keep, change, t1 } => {
+            Frenet::Split { long, keep, change, s0, sa } => {
+                let s = long.position(t).x;
                 let d = match keep {
-                    Some(k) if t < *t1 => k.position(t).x,
-                    _ => change.position(t - t1).x,
+                    Some(k) if s < *sa => k.position(s - s0).x,
+                    _ => change.position((s - sa).min(change.duration)).x,
                 };
-                DVec2::new(long.position(t).x, d)
+                DVec2::new(s, d)
             }
             Frenet::FromRest(m) => m.position(t),
         }
@@ -126,11 +141,22 @@ impl LaneMotion {
         self.path.world(f.x, f.y)
     }
 
-    /// World velocity at `t` (central difference of [`Self::position`], one-sided at the ends).
+    /// World velocity at `t`: the Frenet rates along the lane's interpolated tangent and normal.
     pub fn velocity(&self, t: f64) -> DVec2 {
-        let h = 1e-4;
-        let (a, b) = ((t - h).max(0.0), (t + h).min(self.duration));
-        (self.position(b) - self.position(a)) / (b - a)
+        let t = t.clamp(0.0, self.duration);
+        let rate = match &self.frenet {
+            Frenet::Split { long, keep, change, s0, sa } => {
+                let (s, ds) = (long.position(t).x, long.velocity(t).x);
+                let slope = match keep {
+                    Some(k) if s < *sa => k.velocity(s - s0).x,
+                    _ if s - sa > change.duration => 0.0,
+                    _ => change.velocity(s - sa).x,
+                };
+                DVec2::new(ds, slope * ds)
+            }
+            Frenet::FromRest(m) => m.velocity(t),
+        };
+        self.path.world_velocity(self.frenet_at(t), rate)
     }
 
     /// Waypoints at `t0 + k dt`, `k = 0..=n`, `n dt = duration`; the last exactly at the target.
@@ -196,11 +222,11 @@ mod tests {
         let r = |k: usize| DVec2::new(w[k].x, w[k].y).length();
         // The first 1.5 s on its own lane's centre, then onto the left lane's; always between
         // the two lane centres (a straight chord would cut inside the curve).
-        for k in 0..=15 {
-            assert!((r(k) - 31.8).abs() < 0.05, "t {:.1}: r {:.2}", w[k].t, r(k));
-        }
-        for k in 0..=40 {
-            assert!(r(k) > 28.2 - 0.05 && r(k) < 31.8 + 0.05, "t {:.1}: r {:.2}", w[k].t, r(k));
+        for (k, p) in w.iter().enumerate() {
+            if k <= 15 {
+                assert!((r(k) - 31.8).abs() < 0.05, "t {:.1}: r {:.2}", p.t, r(k));
+            }
+            assert!(r(k) > 28.2 - 0.05 && r(k) < 31.8 + 0.05, "t {:.1}: r {:.2}", p.t, r(k));
         }
         assert!((r(40) - 28.2).abs() < 0.01 && (r(39) - 28.2).abs() < 0.05);
         // Velocity matches at both ends.
