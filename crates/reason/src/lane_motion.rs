@@ -20,8 +20,9 @@
 //! vehicle, target behind it along the lane or too far off it); the planner then uses a
 //! straight-line quintic and records which path it used.
 
+use crate::frenet::LanePath;
 use crate::from_rest::FromRest;
-use crate::lanes::{LanePath, Lanes};
+use crate::lanes::Lanes;
 use crate::quintic::{End, Quintic};
 use crate::world::Vehicle;
 use scene::glam::DVec2;
@@ -80,7 +81,7 @@ impl LaneMotion {
             return Err("no lane centre within 2 m heading within 30 degrees of the vehicle".into());
         };
         let ahead = v.now.p.distance(target) * 1.5 + 20.0;
-        let path = LanePath::chain(lanes.map, lane, v.now.p, target, ahead).ok_or("its lane has no length")?;
+        let path = lanes.chain(lane, v.now.p, target, ahead).ok_or("its lane has no length")?;
         let (f0, f1) = (path.frenet(v.now.p), path.frenet(target));
         if f1.x <= f0.x + 0.5 {
             return Err("the target is not ahead of the vehicle along its lane".into());

@@ -10,6 +10,7 @@ pub mod behavior;
 mod chat;
 pub mod clearance;
 pub mod constraints;
+pub mod frenet;
 pub mod from_rest;
 pub mod intent;
 pub mod lane_motion;
