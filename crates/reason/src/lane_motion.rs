@@ -273,3 +273,44 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod drift_tests {
+    use super::*;
+    use crate::world::Kin;
+    use scene::glam::DVec3;
+    use scene::map::{Map, Polyline};
+
+    #[test]
+    fn an_oncoming_drift_keeps_its_lane_then_crosses_into_the_opposing_one() {
+        // A straight two-way road along x: lane +x at y = -1.8, lane -x at y = +1.8, in 10 m pieces.
+        let mut lanes = Vec::new();
+        for k in 0..20 {
+            let x0 = -100.0 + 10.0 * k as f64;
+            let line = |y: f64, xs: [f64; 2]| xs.iter().map(|x| DVec3::new(*x, y, 0.0)).collect::<Vec<_>>();
+            lanes.push(Polyline { id: k, points: line(-1.8, [x0, x0 + 10.0]) });
+            lanes.push(Polyline { id: 100 + k, points: line(1.8, [x0 + 10.0, x0]) });
+        }
+        let map = Map { lanes, ..Default::default() };
+        let car = Vehicle {
+            id: "o".into(),
+            length: 4.5,
+            width: 2.0,
+            run: vec![],
+            now: Kin { t: 0.0, p: DVec2::new(60.0, 1.8), v: DVec2::new(-10.0, 0.0), heading: std::f64::consts::PI },
+        };
+        // Head-on target in the other lane, 36 m on, reached in 4 s at 8 m/s.
+        let target = DVec2::new(24.0, -1.8);
+        let m = LaneMotion::new(&Lanes::new(&map).unwrap(), &car, target, DVec2::new(-8.0, 0.0), 4.0, 2.0).unwrap();
+        assert!(m.path.lane_ids.windows(2).any(|w| w == [115, 114]), "{:?}", m.path.lane_ids);
+        let w = m.waypoints(0.0, 0.1);
+        // In its lane until the last 2.5 s (about 21 m from the target), then across.
+        for p in w.iter().filter(|p| p.x > 47.0) {
+            assert!((p.y - 1.8).abs() < 1e-6, "at x {:.1}: y {:.3}", p.x, p.y);
+        }
+        assert!(w.iter().any(|p| p.x < 44.0 && p.y < 1.7));
+        let last = w.last().unwrap();
+        assert!((last.y + 1.8).abs() < 1e-9 && (last.x - 24.0).abs() < 1e-9);
+        assert!(w.windows(2).all(|p| p[1].y <= p[0].y + 1e-9), "moves towards the opposing lane only");
+    }
+}
