@@ -12,7 +12,10 @@
 //! (<= 0.25 1/m) and curvature rate (<= 1.0 1/(m s), a loose bound against kinks) are ones a car can
 //! track (curvature also measured on the path's geometry, at any speed); a car at rest leaves
 //! along its body heading ([`crate::from_rest`]: path first, then a minimum-jerk speed profile
-//! starting at [`START_ACCEL`]). Each
+//! starting at [`START_ACCEL`]). Where the map has a lane near the adversary the trajectory
+//! follows the lanes instead, with the same end conditions and limits ([`crate::lane_motion`]:
+//! a cut-in is a lane change between centrelines), and a front or back target sits on its lane's
+//! centre ([`crate::target::on_lane_centre`]); [`Candidate::path`] records which. Each
 //! candidate is measured the way the metrics will measure its execution: the predicted centre
 //! MinTTC and whether, at the closest approach to the ego, it is inside the target zone. Score
 //! ([`score`]): predicted MinTTC >= 1 s ranks last, then lower MinTTC, then 0.02 per m/s^2 of
