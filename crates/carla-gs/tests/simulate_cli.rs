@@ -61,6 +61,7 @@ fn plan_for(scene: &scene::Scene) -> Plan {
             waypoints,
             target: None,
             seed: None,
+            path: None,
         };
     }
     panic!("no moving vehicle in the scene");

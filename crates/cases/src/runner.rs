@@ -161,9 +161,10 @@ fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &E
         let end = e.steps.iter().min_by(|a, b| (a.t - t_end).abs().total_cmp(&(b.t - t_end).abs()))?;
         let aim = target + (target - DVec2::new(end.x, end.y));
         let v = world.vehicle(&last.adversary_track)?;
-        let waypoints = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?.waypoints;
+        let planned = trajectory_to_aim(&world, v, last.behavior, aim, last.ttc_s, o.dt, 0.3)?;
         let plan = Plan {
-            waypoints,
+            waypoints: planned.waypoints,
+            path: Some(planned.path),
             reasoning: format!("{} (refined: target pre-compensated by the executed end-point error)", last.reasoning),
             ..last.clone()
         };
@@ -178,6 +179,7 @@ fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &E
         risk: c.risk(),
         waypoints: c.waypoints.clone(),
         target: Some([c.target.x, c.target.y]),
+        path: Some(c.path),
         reasoning: format!("refined: candidate ranked {r} by the planner"),
         ..last.clone()
     };

@@ -147,6 +147,8 @@ pub struct Table2Row {
     pub kappa_dot_p95_executed: Option<Stat>,
     pub comfort_viol_raw: Option<Stat>,
     pub comfort_viol_executed: Option<Stat>,
+    /// First plans that follow the map's lanes (`Plan::path`), for agents whose plans say.
+    pub lane_following: Option<usize>,
 }
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -238,6 +240,10 @@ pub fn table2(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table2Row> {
                 kappa_dot_p95_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.kappa_dot_p95)),
                 comfort_viol_raw: col(&|r| r.metrics.comfort_reference.map(|c| c.comfort_viol_pct)),
                 comfort_viol_executed: col(&|r| r.metrics.comfort_executed.map(|c| c.comfort_viol_pct)),
+                lane_following: rounds
+                    .iter()
+                    .any(|r| r.plan.path.is_some())
+                    .then(|| rounds.iter().filter(|r| r.plan.path == Some(scene::PlanPath::LaneFollowing)).count()),
             }
         })
         .collect()
@@ -302,12 +308,16 @@ pub fn table1_markdown(rows: &[Table1Row]) -> String {
     s
 }
 
+fn frac_plain(k: usize, n: usize) -> String {
+    format!("{k}/{n}")
+}
+
 pub fn table2_markdown(rows: &[Table2Row]) -> String {
-    let mut s = format!("| agent | cases | {INVALID_MD_HEADER} | \\|a_lat\\|95 raw (m/s²) | \\|a_lat\\|95 executed | \\|κ̇\\|95 raw (1/(m s)) | \\|κ̇\\|95 executed | ComfortViol raw (%) | ComfortViol executed |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut s = format!("| agent | cases | {INVALID_MD_HEADER} | \\|a_lat\\|95 raw (m/s²) | \\|a_lat\\|95 executed | \\|κ̇\\|95 raw (1/(m s)) | \\|κ̇\\|95 executed | ComfortViol raw (%) | ComfortViol executed | lane-following plans |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.agent.as_str(),
             r.cases,
             r.validity.cells(),
@@ -316,7 +326,8 @@ pub fn table2_markdown(rows: &[Table2Row]) -> String {
             fmt(&r.kappa_dot_p95_raw, 3),
             fmt(&r.kappa_dot_p95_executed, 3),
             fmt(&r.comfort_viol_raw, 2),
-            fmt(&r.comfort_viol_executed, 2)
+            fmt(&r.comfort_viol_executed, 2),
+            r.lane_following.map_or("-".to_string(), |k| frac_plain(k, r.cases))
         );
     }
     s
@@ -357,11 +368,11 @@ pub fn table1_csv(rows: &[Table1Row]) -> String {
 }
 
 pub fn table2_csv(rows: &[Table2Row]) -> String {
-    let mut s = format!("agent,cases,{INVALID_CSV_HEADER},a_lat_p95_raw_mean,a_lat_p95_raw_std,a_lat_p95_executed_mean,a_lat_p95_executed_std,kappa_dot_p95_raw_mean,kappa_dot_p95_raw_std,kappa_dot_p95_executed_mean,kappa_dot_p95_executed_std,comfort_viol_raw_mean,comfort_viol_raw_std,comfort_viol_executed_mean,comfort_viol_executed_std\n");
+    let mut s = format!("agent,cases,{INVALID_CSV_HEADER},a_lat_p95_raw_mean,a_lat_p95_raw_std,a_lat_p95_executed_mean,a_lat_p95_executed_std,kappa_dot_p95_raw_mean,kappa_dot_p95_raw_std,kappa_dot_p95_executed_mean,kappa_dot_p95_executed_std,comfort_viol_raw_mean,comfort_viol_raw_std,comfort_viol_executed_mean,comfort_viol_executed_std,lane_following\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{}",
             r.agent.as_str(),
             r.cases,
             r.validity.csv(),
@@ -370,7 +381,8 @@ pub fn table2_csv(rows: &[Table2Row]) -> String {
             csv_stat(&r.kappa_dot_p95_raw),
             csv_stat(&r.kappa_dot_p95_executed),
             csv_stat(&r.comfort_viol_raw),
-            csv_stat(&r.comfort_viol_executed)
+            csv_stat(&r.comfort_viol_executed),
+            r.lane_following.map_or(String::new(), |k| k.to_string())
         );
     }
     s

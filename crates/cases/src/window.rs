@@ -143,6 +143,7 @@ mod tests {
             waypoints,
             target: None,
             seed: None,
+            path: None,
         }
     }
 

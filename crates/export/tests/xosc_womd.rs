@@ -48,6 +48,7 @@ fn plan_for(scene: &Scene) -> Option<Plan> {
             waypoints,
             target: None,
             seed: None,
+            path: None,
         });
     }
     None

@@ -66,6 +66,7 @@ pub fn describe_candidate(world: &World, c: &Candidate) -> String {
         c.ttc_s,
         c.predicted_min_ttc
     ) + &contact
+        + &format!("; path: {} ({})", c.path.as_str(), c.path_note)
 }
 
 pub(crate) fn decision_of(world: &World, c: &Candidate) -> ZoneDecision {
@@ -241,7 +242,10 @@ pub fn run_planner(world: &World, o: &ReasonOptions) -> Outcome {
         Ok(c) => {
             let d = decision_of(world, &c);
             Outcome::Plan {
-                plan: crate::make_plan(world, o, &d, c.waypoints.clone(), c.target, "planner"),
+                plan: scene::Plan {
+                    path: Some(c.path),
+                    ..crate::make_plan(world, o, &d, c.waypoints.clone(), c.target, "planner")
+                },
                 stats: None,
             }
         }

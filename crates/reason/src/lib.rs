@@ -10,8 +10,11 @@ pub mod behavior;
 mod chat;
 pub mod clearance;
 pub mod constraints;
+pub mod frenet;
 pub mod from_rest;
 pub mod intent;
+pub mod lane_motion;
+pub mod lanes;
 pub mod planner;
 pub mod prompt;
 pub mod quintic;
@@ -194,6 +197,7 @@ pub(crate) fn make_plan(
         waypoints,
         target: Some([target.x, target.y]),
         seed: Some(o.seed),
+        path: None,
     }
 }
 

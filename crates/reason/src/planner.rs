@@ -12,7 +12,10 @@
 //! (<= 0.25 1/m) and curvature rate (<= 1.0 1/(m s), a loose bound against kinks) are ones a car can
 //! track (curvature also measured on the path's geometry, at any speed); a car at rest leaves
 //! along its body heading ([`crate::from_rest`]: path first, then a minimum-jerk speed profile
-//! starting at [`START_ACCEL`]). Each
+//! starting at [`START_ACCEL`]). Where the map has a lane near the adversary the trajectory
+//! follows the lanes instead, with the same end conditions and limits ([`crate::lane_motion`]:
+//! a cut-in is a lane change between centrelines), and a front or back target sits on its lane's
+//! centre ([`crate::target::on_lane_centre`]); [`Candidate::path`] records which. Each
 //! candidate is measured the way the metrics will measure its execution: the predicted centre
 //! MinTTC and whether, at the closest approach to the ego, it is inside the target zone. Score
 //! ([`score`]): predicted MinTTC >= 1 s ranks last, then lower MinTTC, then 0.02 per m/s^2 of
@@ -26,14 +29,15 @@
 use crate::behavior::{candidate_zones, spec, EndPolicy};
 use crate::clearance::Bystanders;
 use crate::from_rest::FromRest;
+use crate::lane_motion::LaneMotion;
 use crate::quintic::{limits, trackability, End, Quintic};
-use crate::target::sample_target;
+use crate::target::{on_lane_centre, sample_target};
 use crate::world::{Kin, Vehicle, World};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use scene::glam::DVec2;
 use scene::zones::zone_rect;
-use scene::{Behavior, Risk, Waypoint, Zone, ZoneLayout};
+use scene::{Behavior, PlanPath, Risk, Waypoint, Zone, ZoneLayout};
 
 pub const PLAN_MAX_SPEED: f64 = 35.0;
 pub const PLAN_MAX_ACCEL: f64 = 7.5;
@@ -64,6 +68,10 @@ pub struct Planned {
     pub closest_local: DVec2,
     /// The first logged actor other than the ego the path touches (id, time), if any.
     pub contact_with: Option<(String, f64)>,
+    /// Along the adversary's lane, or a straight-line quintic ([`crate::lane_motion`]).
+    pub path: PlanPath,
+    /// Which lanes it follows, or why it does not.
+    pub path_note: String,
 }
 
 #[derive(Clone, Debug)]
@@ -82,6 +90,9 @@ pub struct Candidate {
     /// every clear candidate ([`CONTACT_PENALTY`]).
     pub predicted_contact_with: Option<(String, f64)>,
     pub score: f64,
+    /// Along the adversary's lane, or a straight-line quintic, and which lanes or why not.
+    pub path: PlanPath,
+    pub path_note: String,
 }
 
 /// Score added to a candidate whose path touches a bystander first (after zone misses).
@@ -158,16 +169,31 @@ pub fn trajectory_to_aim(
     let ego_end = world.ego_kin(t_end);
     let v_end = end_velocity(end_policy(b, world, target, ttc), &ego_end, target, v, aim_ttc);
     let body = DVec2::new(v.now.heading.cos(), v.now.heading.sin());
-    // A car at rest can only start along its body heading (forward): path first, then speed.
-    let motion = if v.now.speed() < 1.0 {
-        let speed = v.now.v.dot(body).max(0.0);
-        Motion::FromRest(FromRest::new(v.now.p, v.now.heading, speed, START_ACCEL, target, v_end, ttc)?)
-    } else {
-        Motion::Quintic(Quintic::new(
-            End { p: v.now.p, v: v.now.v, a: DVec2::ZERO },
-            End { p: target, v: v_end, a: DVec2::ZERO },
-            ttc,
-        ))
+    // Along the adversary's lane where the map has one near it; else a straight-line quintic.
+    let lane = match &world.lanes {
+        Some(lanes) => LaneMotion::new(lanes, v, target, v_end, ttc, START_ACCEL),
+        None => Err("the scene has no lane map".to_string()),
+    };
+    let (motion, path, path_note) = match lane {
+        Ok(m) => {
+            let ids: Vec<String> = m.path.lane_ids.iter().map(|id| id.to_string()).collect();
+            (Motion::Lane(Box::new(m)), PlanPath::LaneFollowing, format!("along lane(s) {}", ids.join(", ")))
+        }
+        // A car at rest can only start along its body heading (forward): path first, then speed.
+        Err(why) if v.now.speed() < 1.0 => {
+            let speed = v.now.v.dot(body).max(0.0);
+            let m = FromRest::new(v.now.p, v.now.heading, speed, START_ACCEL, target, v_end, ttc)?;
+            (Motion::FromRest(m), PlanPath::StraightLine, why)
+        }
+        Err(why) => (
+            Motion::Quintic(Quintic::new(
+                End { p: v.now.p, v: v.now.v, a: DVec2::ZERO },
+                End { p: target, v: v_end, a: DVec2::ZERO },
+                ttc,
+            )),
+            PlanPath::StraightLine,
+            why,
+        ),
     };
     let waypoints = motion.waypoints(world.t0, dt);
     let l = limits(&waypoints);
@@ -201,11 +227,12 @@ pub fn trajectory_to_aim(
         .fold(f64::INFINITY, f64::min);
     let contact_with =
         Bystanders::near(world.scene, &v.id, &waypoints).first_contact(&waypoints, v.now.heading, v.length, v.width);
-    Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest, contact_with })
+    Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest, contact_with, path, path_note })
 }
 
-/// The adversary's motion from t0: a per-axis quintic, or path-then-speed from rest.
+/// The adversary's motion from t0: along its lane, a per-axis quintic, or path-then-speed from rest.
 enum Motion {
+    Lane(Box<LaneMotion>),
     Quintic(Quintic),
     FromRest(FromRest),
 }
@@ -213,6 +240,7 @@ enum Motion {
 impl Motion {
     fn waypoints(&self, t0: f64, dt: f64) -> Vec<Waypoint> {
         match self {
+            Motion::Lane(m) => m.waypoints(t0, dt),
             Motion::Quintic(q) => q.waypoints(t0, dt),
             Motion::FromRest(m) => m.waypoints(t0, dt),
         }
@@ -220,6 +248,7 @@ impl Motion {
 
     fn velocity(&self, s: f64) -> DVec2 {
         match self {
+            Motion::Lane(m) => m.velocity(s),
             Motion::Quintic(q) => q.velocity(s),
             Motion::FromRest(m) => m.velocity(s),
         }
@@ -286,7 +315,7 @@ pub fn search_vehicle_zone(
     let mut out = Vec::new();
     for &ttc in grid {
         for _ in 0..TARGETS_PER_CANDIDATE {
-            let target = sample_target(world, zone, layout, ttc, rng);
+            let target = on_lane_centre(world, zone, layout, ttc, sample_target(world, zone, layout, ttc, rng));
             if let Some(p) = trajectory_to(world, v, b, target, ttc, dt) {
                 // A predicted miss ranks last (see `score`) but stays: the metric decides, not the search.
                 let hit = zone_rect(zone, layout, world.ego_length, world.ego_width).contains(p.closest_local);
@@ -303,6 +332,8 @@ pub fn search_vehicle_zone(
                     predicted_zone_hit: hit,
                     peak_accel: p.peak_accel,
                     predicted_contact_with: p.contact_with,
+                    path: p.path,
+                    path_note: p.path_note,
                 });
             }
         }

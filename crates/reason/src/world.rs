@@ -66,6 +66,8 @@ pub struct World<'a> {
     pub vehicles: Vec<Vehicle>,
     /// Last time with a logged ego pose.
     pub t_last: f64,
+    /// The map's lanes, when it has some (map-aware plans, [`crate::lane_motion`]).
+    pub lanes: Option<crate::lanes::Lanes<'a>>,
 }
 
 fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
@@ -101,6 +103,7 @@ impl<'a> World<'a> {
             ego_length: scene.ego.size_lwh[0],
             ego_width: scene.ego.size_lwh[1],
             t_last,
+            lanes: scene.map.as_ref().and_then(crate::lanes::Lanes::new),
             ego_series,
             vehicles,
         })

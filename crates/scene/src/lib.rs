@@ -28,7 +28,7 @@ pub use map::{Map, Polyline};
 pub use model::{Ego, EgoSizeSource, Frame, ImageRef, LidarRef, Scene, Source, SourceKind, SCENE_FORMAT};
 pub use motion::Pose2;
 pub use output::{write_file_atomic, StagedDir};
-pub use plan::{Behavior, Plan, Risk, Waypoint};
+pub use plan::{Behavior, Plan, PlanPath, Risk, Waypoint};
 pub use summary::SceneSummary;
 pub use track::{ObjectClass, Track, TrackState};
 pub use transform::Transform3;

@@ -112,6 +112,28 @@ pub struct Plan {
     pub target: Option<[f64; 2]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
+    /// How the planner shaped the path (absent for agents that do not say).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<PlanPath>,
+}
+
+/// The geometry a planned path follows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlanPath {
+    /// Along the adversary's lane centreline on the map (lane changes between centrelines).
+    LaneFollowing,
+    /// A straight-line quintic (no map, or no lane near the adversary).
+    StraightLine,
+}
+
+impl PlanPath {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PlanPath::LaneFollowing => "lane_following",
+            PlanPath::StraightLine => "straight_line",
+        }
+    }
 }
 
 /// Tolerance on waypoint times (s).
@@ -222,6 +244,7 @@ pub(crate) mod tests {
             waypoints: (0..4).map(|i| Waypoint { t: 1.0 + 0.1 * i as f64, x: i as f64, y: 0.0 }).collect(),
             target: None,
             seed: None,
+            path: None,
         }
     }
 

@@ -100,6 +100,7 @@ fn plan() -> Plan {
         waypoints,
         target: None,
         seed: None,
+        path: None,
     }
 }
 
