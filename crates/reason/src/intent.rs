@@ -111,12 +111,12 @@ motion. Reply with one JSON object: behavior, vehicle_id, zone, ttc_s, explanati
 
 fn user(world: &World, sentence: &str) -> String {
     let mut s = String::from("Behaviour library:\n");
-    for b in Behavior::ALL {
+    for b in Behavior::EVERY {
         let zs: Vec<&str> = spec(b).zones.iter().map(|z| z.as_str()).collect();
         let _ = writeln!(s, "- {}: {} (zones {})", b.as_str(), spec(b).description, zs.join("/"));
     }
     let _ = writeln!(s, "Vehicles around the ego at t0 (lanes of {LANE_WIDTH} m):");
-    for v in world.vehicles.iter().take(16) {
+    for v in world.vehicles.iter().take(16).chain(world.vulnerable.iter().take(8)) {
         let _ = writeln!(s, "- id {}: {}", v.id, who_is(world, v));
     }
     let _ = write!(s, "The log continues {:.1} s after t0.\nUser: \"{sentence}\"", world.horizon());
@@ -132,10 +132,11 @@ pub fn read(
     sentence: &str,
     backend: &mut dyn Backend,
 ) -> Result<Result<Intent, Vec<Violation>>, ReasonError> {
-    let ids: Vec<String> =
-        std::iter::once("any".to_string()).chain(world.vehicles.iter().map(|v| v.id.clone())).collect();
+    let ids: Vec<String> = std::iter::once("any".to_string())
+        .chain(world.vehicles.iter().take(16).chain(world.vulnerable.iter().take(8)).map(|v| v.id.clone()))
+        .collect();
     let zones: Vec<&str> = std::iter::once("any").chain(Zone::ALL.iter().map(|z| z.as_str())).collect();
-    let behaviours: Vec<&str> = Behavior::ALL.iter().map(|b| b.as_str()).collect();
+    let behaviours: Vec<&str> = Behavior::EVERY.iter().map(|b| b.as_str()).collect();
     let small = backend.capability() == Capability::LabelsOnly;
     let schema = json!({
         "type": "object", "additionalProperties": false,

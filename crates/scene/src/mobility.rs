@@ -37,6 +37,9 @@ pub struct MotionLimits {
     pub max_curvature: Option<f64>,
 }
 
+/// A pedestrian's usual walking speed (m/s; Knoblauch et al. 1996, see above).
+pub const WALKING_SPEED: f64 = 1.4;
+
 /// A walking or running pedestrian (see the module documentation for the sources).
 pub const PEDESTRIAN: MotionLimits =
     MotionLimits { max_speed: 3.5, max_accel: 2.5, max_decel: 2.5, max_lat_accel: 2.5, max_curvature: None };
