@@ -96,6 +96,35 @@ fn attempt_of(r: &CaseResult) -> Attempt {
     }
 }
 
+/// `run --describe "<sentence>"`: an LLM agent reads the sentence ([`reason::intent`]) against
+/// the road users at `t0` (the given time, or the first one a search would try); returns the
+/// reading, the reading in words and that t0 (s from the first frame). `flags` are the user's
+/// options (explicit flags win: [`reason::intent::Intent::fill`]).
+pub fn describe(
+    scene: &Scene,
+    t0: &T0Choice,
+    flags: &ReasonOptions,
+    sentence: &str,
+    backend: &mut dyn Backend,
+) -> Result<(reason::intent::Intent, String, f64), String> {
+    let t = match t0 {
+        T0Choice::At(t) => *t,
+        T0Choice::Search(spec) => spec.times(scene).first().copied().ok_or("the log is too short for any t0")?,
+    };
+    let o = ReasonOptions { t0: scene.frames[0].timestamp_s + t, ..flags.clone() };
+    match reason::intent::describe(scene, &o, sentence, backend).map_err(|e| format!("--describe: {e}"))? {
+        Ok((intent, summary)) => Ok((intent, summary, t)),
+        Err(v) => {
+            let why: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            Err(format!(
+                "--describe: \"{sentence}\" could not be read as a request at t0 = {t:.1} s after {} re-prompt(s): {}",
+                flags.max_retries,
+                why.join("; ")
+            ))
+        }
+    }
+}
+
 fn rank(a: &Attempt) -> (bool, bool, bool, f64) {
     (a.valid, a.zone_hit, a.success, -a.min_ttc_center_s.unwrap_or(f64::INFINITY))
 }
@@ -130,6 +159,7 @@ pub fn select_case_with(
         simulate,
         // One case is rendered as planned: its own plan end, no continuation after it.
         window: cases::window::Window { horizon: cases::window::Horizon::Plan, ..Default::default() },
+        requests: Default::default(),
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;
