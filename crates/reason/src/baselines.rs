@@ -175,7 +175,8 @@ pub fn rule_based(world: &World, o: &ReasonOptions) -> Outcome {
     let waypoints = follow(world, v, &m, dur, o.dt);
     let end = waypoints.last().map(|w| DVec2::new(w.x, w.y)).expect("non-empty");
     let why = format!(
-        "rule-based baseline: vehicle {} is the nearest positioned for {}; {}",
+        "rule-based baseline: {} {} is the nearest positioned for {}; {}",
+        v.class.as_str(),
         v.id,
         behavior.as_str(),
         m.what
@@ -219,7 +220,13 @@ pub fn random(world: &World, o: &ReasonOptions) -> Outcome {
         Zone::Back => Behavior::RearTailgating,
         Zone::Left | Zone::Right => Behavior::SidePass,
     });
-    let d = decision(v, zone, behavior, dur, format!("random baseline: seeded perturbations of vehicle {}", v.id));
+    let d = decision(
+        v,
+        zone,
+        behavior,
+        dur,
+        format!("random baseline: seeded perturbations of {} {}", v.class.as_str(), v.id),
+    );
     Outcome::Plan { plan: make_plan(world, o, &d, waypoints, target, "random"), stats: None }
 }
 

@@ -127,7 +127,8 @@ pub fn search(world: &World, b: Behavior, o: &ReasonOptions) -> Result<Vec<Candi
             format!("no {} within range is positioned for {}{zone}", who_performs(b), b.as_str())
         } else {
             format!(
-                "{eligible} vehicle/zone pair(s) fit {}{zone}, but no trajectory{ttc} stays within the speed, acceleration, jerk, yaw-rate and curvature limits",
+                "{eligible} {}/zone pair(s) fit {}{zone}, but no trajectory{ttc} stays within the speed, acceleration, jerk, yaw-rate and curvature limits",
+                who_performs(b),
                 b.as_str()
             )
         });

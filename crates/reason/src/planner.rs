@@ -271,7 +271,8 @@ pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64
             let who = crate::behavior::who_performs(b);
             format!("no {who} within range is positioned for {} ({})", b.as_str(), spec(b).description)
         } else {
-            format!("{eligible} vehicle(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
+            let who = crate::behavior::who_performs(b);
+            format!("{eligible} {who}(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
         });
     }
     out.sort_by(|a, b| a.score.total_cmp(&b.score));

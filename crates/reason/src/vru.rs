@@ -16,7 +16,8 @@
 //!   it never rides backwards.
 //!
 //! Each plan is measured as the planner measures a car's (predicted centre MinTTC against the
-//! ego's logged motion, closest approach in the ego frame, first contact with a logged bystander).
+//! ego's logged motion, closest approach in the ego frame, first contact with a logged bystander;
+//! for a pedestrian, other pedestrians are not bystanders it can crash into).
 
 use crate::behavior::{spec, EndPolicy};
 use crate::clearance::Bystanders;
@@ -195,7 +196,11 @@ fn measure(world: &World, v: &Vehicle, waypoints: Vec<Waypoint>, dt: f64, peak_a
             center_ttc(e.p, e.v, pos(&waypoints[k]), vel)
         })
         .fold(f64::INFINITY, f64::min);
-    let contact_with =
-        Bystanders::near(world.scene, &v.id, &waypoints).first_contact(&waypoints, v.now.heading, v.length, v.width);
+    let mut near = Bystanders::near(world.scene, &v.id, &waypoints);
+    if v.class == ObjectClass::Pedestrian {
+        // People walk in groups, closer than their boxes: only vehicles and cyclists count.
+        near = near.ignoring(ObjectClass::Pedestrian);
+    }
+    let contact_with = near.first_contact(&waypoints, v.now.heading, v.length, v.width);
     Planned { waypoints, min_ttc, peak_accel, closest_local: closest, contact_with }
 }

@@ -15,10 +15,11 @@
 //! `KD = 4 1/s` (critically damped at 2 rad/s), recomputed every control period and held over
 //! the physics sub-steps (semi-implicit Euler). The records are the vehicle's ([`StepRecord`]:
 //! state `[x, y, 0, speed, heading, yaw rate, 0]`, no pedals), so validity and the output are
-//! the same code; a pedestrian is not held to road edges (stepping off the kerb is the point).
+//! the same code; a pedestrian is not held to road edges (stepping off the kerb is the point), and
+//! touching another pedestrian's box is not a contact (groups walk closer than their boxes).
 
 use crate::actuation::Control;
-use crate::collision::{cuboid, first_overlap};
+use crate::collision::{cuboid, first_overlap, Replayed};
 use crate::error::SimError;
 use crate::rollout::{finish, Prepared, RolloutConfig};
 use crate::tracker::{control_steps, StepRecord, TrackError};
@@ -120,6 +121,11 @@ pub fn simulate(
         heading: heading0,
     };
     let (adv_box, adv_radius) = cuboid(prep.size[0], prep.size[1]);
+    // People walk in groups, closer than their boxes: a pedestrian's contacts are with vehicles,
+    // cyclists and the ego only.
+    let pedestrian = prep.adversary.class == ObjectClass::Pedestrian;
+    let actors: Vec<Replayed> =
+        prep.actors.iter().filter(|a| !(pedestrian && a.class == ObjectClass::Pedestrian)).cloned().collect();
     let mut contact: Option<Contact> = None;
     let record = |t: f64, b: &Body, along: f64, lat: f64, yaw: f64| StepRecord {
         t,
@@ -149,7 +155,7 @@ pub fn simulate(
             let ts = t + elapsed;
             if contact.is_none() && ts >= prep.t0 - 1e-9 {
                 let pose = Pose2 { t: ts, x: b.p.x, y: b.p.y, heading: b.heading };
-                if let Some(o) = first_overlap(&prep.actors, &pose, &adv_box, adv_radius) {
+                if let Some(o) = first_overlap(&actors, &pose, &adv_box, adv_radius) {
                     contact = Some(Contact { t: ts, other: o.id.clone(), class: o.class });
                 }
             }
