@@ -126,7 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     match reason::reason(&scene, &options, agent).context("reasoning failed")? {
         Outcome::NoFeasible { reason } => {
-            println!("no feasible vehicle for this behaviour at t0 = {:.2} s: {reason}", a.t0);
+            println!("no feasible adversary for this behaviour at t0 = {:.2} s: {reason}", a.t0);
             Ok(())
         }
         Outcome::Rejected { stats, reason } => {
@@ -140,8 +140,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         Outcome::Plan { plan, stats } => {
             scene::format::write_json_pretty(&a.out, &plan)?;
+            let class = scene.track(&plan.adversary_track).map_or("track", |t| t.class.as_str());
             println!(
-                "{}: vehicle {} -> {} zone, {}, TTC {:.2} s, risk {:?}",
+                "{}: {class} {} -> {} zone, {}, TTC {:.2} s, risk {:?}",
                 plan.agent,
                 plan.adversary_track,
                 plan.target_zone.as_str(),
