@@ -188,3 +188,32 @@ fn shared_womd_pedestrians_and_cyclists_are_planned_or_refused_with_a_reason() {
         println!("{}: {seen} pedestrians and cyclists asked for", s.name);
     }
 }
+
+#[test]
+fn an_llms_waypoints_for_a_pedestrian_are_held_to_a_pedestrians_limits() {
+    use reason::reply::WaypointReply;
+    use reason::validate::{parse_risk, validate_trajectory, TrajFrame, ZoneDecision};
+    let s = street();
+    let world = reason::world::World::new(&s, 1.0, 60.0).unwrap();
+    let d = ZoneDecision {
+        vehicle_id: "ped".into(),
+        zone: Zone::Front,
+        behavior: Behavior::StepOut,
+        ttc_s: 2.0,
+        risk: parse_risk("high").unwrap(),
+        analysis: String::new(),
+        reasoning: String::new(),
+    };
+    // Straight from (40, -6) to (40, 6) in 2 s at a constant 6 m/s: fine for a car, not on foot.
+    let reply: Vec<WaypointReply> =
+        (0..=20).map(|k| WaypointReply { t: 1.0 + k as f64 * 0.1, x: 40.0, y: -6.0 + 0.6 * k as f64 }).collect();
+    let target = DVec2::new(40.0, 6.0);
+    let why = validate_trajectory(&world, &d, target, &reply, 0.1, TrajFrame::World).unwrap_err();
+    let text: Vec<String> = why.iter().map(|v| v.to_string()).collect();
+    assert!(text.iter().any(|t| t.contains("speed reaches 6.0 m/s (a pedestrian at most 3.5)")), "{text:?}");
+    // The same path in 4 s at 3 m/s passes.
+    let slow: Vec<WaypointReply> =
+        (0..=40).map(|k| WaypointReply { t: 1.0 + k as f64 * 0.1, x: 40.0, y: -6.0 + 0.3 * k as f64 }).collect();
+    let d4 = ZoneDecision { ttc_s: 4.0, ..d };
+    assert!(validate_trajectory(&world, &d4, target, &slow, 0.1, TrajFrame::World).is_ok());
+}
