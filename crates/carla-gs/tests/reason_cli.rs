@@ -59,3 +59,31 @@ fn reason_with_adversary_zone_and_ttc() {
     let (ok, _, stderr) = run(&["--ttc=-1", "--behavior", "side_pass"]);
     assert!(!ok && stderr.contains("--ttc"), "{stderr}");
 }
+
+/// A pedestrian as the adversary: planned for `step_out` (and by `auto`), refused for a vehicle
+/// behaviour with the constraint named; a vehicle asked to step out is refused too.
+#[test]
+fn reason_with_a_pedestrian_adversary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let Some(dir) = scene_dir(tmp.path()) else { return };
+    let plan_path = tmp.path().join("ped.json");
+    let run = |extra: &[&str]| {
+        let out = carla_gs(&[&["reason", s(&dir), "--t0", "1", "--out", s(&plan_path)][..], extra].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let stdout = run(&["--adversary", "2313", "--behavior", "sudden_braking"]);
+    assert!(
+        stdout.contains(
+            "track 2313 cannot perform sudden_braking: it is a pedestrian, and pedestrians can perform step_out only"
+        ),
+        "{stdout}"
+    );
+    assert!(!plan_path.exists());
+    let stdout = run(&["--adversary", "1588", "--behavior", "step_out"]);
+    assert!(stdout.contains("it is a vehicle, and only pedestrians can perform step_out"), "{stdout}");
+    let stdout = run(&["--adversary", "2313"]);
+    assert!(stdout.contains("planner: pedestrian 2313 -> front zone, step_out"), "{stdout}");
+    let plan: scene::Plan = scene::format::read_json(&plan_path).unwrap();
+    assert_eq!((plan.adversary_track.as_str(), plan.behavior), ("2313", scene::Behavior::StepOut));
+}

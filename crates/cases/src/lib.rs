@@ -5,6 +5,7 @@
 //! Markdown, CSV and JSON, per-case files and plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
 //! results do not depend on the thread count (every case has its own seed).
 
+pub mod describe;
 pub mod llm_validity;
 pub mod paired;
 pub mod plots;
@@ -117,7 +118,9 @@ pub fn run_eval(
     backends: &BackendFactory,
     progress: &ProgressBar,
 ) -> Result<Report, EvalError> {
-    let attempts = attempts(scenes, &cfg.behaviors, &cfg.t0, cfg.seed);
+    let mut attempts = attempts(scenes, &cfg.behaviors, &cfg.t0, cfg.seed);
+    // A scene with a `--describe` reading is attempted with its behaviour only.
+    attempts.retain(|a| cfg.case.requests.get(&a.scene).is_none_or(|r| r.behavior == a.behavior));
     let all: Vec<CaseSpec> = attempts.iter().flat_map(|a| cfg.agents.iter().map(|g| a.for_agent(*g))).collect();
     progress.set_length(all.len() as u64);
     let case_dir = cfg.out.join("cases");

@@ -157,10 +157,15 @@ pub fn paired_csv(rows: &[PairedRow]) -> String {
 pub fn why_class(reason: &str) -> &'static str {
     if reason.contains("log ends") {
         "no feasible: log too short after t0"
-    } else if reason.starts_with("no vehicle within range is positioned") {
+    } else if reason.starts_with("no pedestrian within range is positioned") {
+        "no feasible: no pedestrian positioned for the behaviour"
+    } else if reason.starts_with("no vehicle") && reason.contains("within range is positioned") {
+        // "no vehicle" or "no vehicle or cyclist" (the behaviours cyclists can also perform).
         "no feasible: no vehicle positioned for the behaviour"
     } else if reason.contains("none can reach") {
         "no feasible: positioned, but no trajectory within the limits"
+    } else if reason.starts_with("no pedestrian within range") {
+        "no feasible: no pedestrian in range"
     } else if reason.contains("no vehicle within range") || reason.contains("is not a vehicle within") {
         "no feasible: no vehicle in range"
     } else {
@@ -211,5 +216,9 @@ mod tests {
         assert_eq!(sign_test(3, 3), 1.0);
         assert_eq!(sign_test(0, 0), 1.0);
         assert_eq!(why_class("the log ends 1.0 s after t0, shorter than x"), "no feasible: log too short after t0");
+        let cut_in = "no vehicle or cyclist within range is positioned for sudden_cut_in (a vehicle ...)";
+        assert_eq!(why_class(cut_in), "no feasible: no vehicle positioned for the behaviour");
+        let step_out = "no pedestrian within range is positioned for step_out (a pedestrian ...)";
+        assert_eq!(why_class(step_out), "no feasible: no pedestrian positioned for the behaviour");
     }
 }

@@ -21,9 +21,10 @@ use reason::world::World;
 use reason::{Agent, Outcome, ReasonOptions, ValidityStats};
 use scene::glam::DVec2;
 use scene::zones::zone_rect;
-use scene::{Executed, Plan, Scene, Zone};
+use scene::{Behavior, Executed, Plan, Scene, Zone};
 use serde::{Deserialize, Serialize};
 use sim::{RolloutConfig, SimError};
+use std::collections::BTreeMap;
 
 /// The physics stage as a function (tests substitute a failing one).
 pub type SimulateFn = dyn Fn(&Scene, &Plan, &RolloutConfig) -> Result<Executed, SimError> + Sync + Send;
@@ -35,6 +36,25 @@ pub struct CaseConfig {
     pub simulate: Box<SimulateFn>,
     /// The window every plan is executed and measured over (one horizon for every agent).
     pub window: Window,
+    /// What a `--describe` sentence was read as, by scene name: that scene's attempts use its
+    /// behaviour only and its constraints where `reason` leaves them open.
+    pub requests: BTreeMap<String, SceneRequest>,
+}
+
+/// A sentence's reading in one scene (`reason::intent`): the behaviour, and the adversary, zone
+/// and TTC when it named them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneRequest {
+    pub behavior: Behavior,
+    pub adversary: Option<String>,
+    pub zone: Option<Zone>,
+    pub ttc_s: Option<f64>,
+}
+
+impl SceneRequest {
+    pub fn of(i: &reason::intent::Intent) -> Self {
+        SceneRequest { behavior: i.behavior, adversary: i.adversary.clone(), zone: i.zone, ttc_s: i.ttc_s }
+    }
 }
 
 /// Executes `plan` over the window: cut or extended to the horizon, and cut again at a contact
@@ -209,12 +229,18 @@ pub fn run_case(
     cfg: &CaseConfig,
     mut backend: Option<&mut dyn Backend>,
 ) -> (CaseResult, Option<Executed>) {
-    let o = ReasonOptions {
+    let mut o = ReasonOptions {
         t0: scene.frames[0].timestamp_s + spec.t0_s,
         behavior: Some(spec.behavior),
         seed: spec.seed,
         ..cfg.reason.clone()
     };
+    if let Some(r) = cfg.requests.get(&scene.name) {
+        // Explicit flags (already in `o`) win over the sentence.
+        o.adversary = o.adversary.or_else(|| r.adversary.clone());
+        o.zone = o.zone.or(r.zone);
+        o.ttc_s = o.ttc_s.or(r.ttc_s);
+    }
     let fail = |stage: &str, reason: String| {
         (CaseResult { spec: spec.clone(), status: Status::Failed { stage: stage.into(), reason } }, None)
     };

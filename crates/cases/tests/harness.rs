@@ -24,6 +24,7 @@ fn config(out: &Path, simulate: Box<cases::runner::SimulateFn>, plots: bool) -> 
             refine_rounds: 3,
             simulate,
             window: cases::window::Window::default(),
+            requests: Default::default(),
         },
     }
 }

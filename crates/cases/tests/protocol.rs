@@ -39,6 +39,7 @@ fn same_attempts_same_window_and_honest_baselines() {
             refine_rounds: 1,
             simulate: Box::new(sim::simulate),
             window: Window { horizon: Horizon::Seconds(horizon), ..Default::default() },
+            requests: Default::default(),
         },
     };
     let r = run_eval(&scenes, &cfg, &no_backend, &ProgressBar::hidden()).unwrap();

@@ -96,6 +96,35 @@ fn attempt_of(r: &CaseResult) -> Attempt {
     }
 }
 
+/// `run --describe "<sentence>"`: an LLM agent reads the sentence ([`reason::intent`]) against
+/// the road users at `t0` (the given time, or the first one a search would try); returns the
+/// reading, the reading in words and that t0 (s from the first frame). `flags` are the user's
+/// options (explicit flags win: [`reason::intent::Intent::fill`]).
+pub fn describe(
+    scene: &Scene,
+    t0: &T0Choice,
+    flags: &ReasonOptions,
+    sentence: &str,
+    backend: &mut dyn Backend,
+) -> Result<(reason::intent::Intent, String, f64), String> {
+    let t = match t0 {
+        T0Choice::At(t) => *t,
+        T0Choice::Search(spec) => spec.times(scene).first().copied().ok_or("the log is too short for any t0")?,
+    };
+    let o = ReasonOptions { t0: scene.frames[0].timestamp_s + t, ..flags.clone() };
+    match reason::intent::describe(scene, &o, sentence, backend).map_err(|e| format!("--describe: {e}"))? {
+        Ok((intent, summary)) => Ok((intent, summary, t)),
+        Err(v) => {
+            let why: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+            Err(format!(
+                "--describe: \"{sentence}\" could not be read as a request at t0 = {t:.1} s after {} re-prompt(s): {}",
+                flags.max_retries,
+                why.join("; ")
+            ))
+        }
+    }
+}
+
 fn rank(a: &Attempt) -> (bool, bool, bool, f64) {
     (a.valid, a.zone_hit, a.success, -a.min_ttc_center_s.unwrap_or(f64::INFINITY))
 }
@@ -130,6 +159,7 @@ pub fn select_case_with(
         simulate,
         // One case is rendered as planned: its own plan end, no continuation after it.
         window: cases::window::Window { horizon: cases::window::Horizon::Plan, ..Default::default() },
+        requests: Default::default(),
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;
@@ -160,4 +190,67 @@ pub fn select_case_with(
         }
     }
     Selection { attempts, chosen: chosen.map(|(_, r, e)| (r, e)) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use reason::backend::scripted::Scripted;
+    use reason::backend::Capability;
+    use scene::glam::DVec3;
+    use scene::{Ego, EgoSizeSource, Frame, ObjectClass, Source, SourceKind, Track, TrackState, Transform3};
+
+    /// 6 s at 10 Hz: the ego drives along +x at 8 m/s; pedestrian `ped` stands at (40, -6).
+    fn street() -> Scene {
+        let frames = (0..60)
+            .map(|i| Frame {
+                index: i,
+                timestamp_s: i as f64 * 0.1,
+                world_from_ego: Transform3::from_yaw_translation(0.0, DVec3::new(0.8 * i as f64, 0.0, 0.0)),
+                images: vec![],
+                lidar: None,
+            })
+            .collect();
+        let states = (0..60)
+            .map(|i| TrackState {
+                frame: i,
+                center: DVec3::new(40.0, -6.0, 0.8),
+                heading: 1.57,
+                size_lwh: [0.6, 0.6, 1.7],
+                velocity: None,
+                valid: true,
+            })
+            .collect();
+        Scene {
+            format: "test".into(),
+            name: "street".into(),
+            source: Source { kind: SourceKind::Synthetic, files: vec![], id: "t".into() },
+            ego: Ego { size_lwh: [4.5, 2.0, 1.6], size_source: EgoSizeSource::Default, track_id: None },
+            cameras: vec![],
+            frames,
+            tracks: vec![Track { id: "ped".into(), class: ObjectClass::Pedestrian, states }],
+            map: None,
+        }
+    }
+
+    #[test]
+    fn run_describe_reads_at_the_first_searched_t0_and_reprompts_an_impossible_reading() {
+        let s = street();
+        let wrong = r#"{"behavior":"sudden_braking","vehicle_id":"ped","zone":"front","ttc_s":0,"explanation":"x"}"#;
+        let good = r#"{"behavior":"step_out","vehicle_id":"ped","zone":"any","ttc_s":2.5,"explanation":"steps out"}"#;
+        let mut b = Scripted::new([wrong, good], Capability::LabelsOnly);
+        let search = T0Choice::Search(T0Spec::Every(0.5));
+        let flags = ReasonOptions::default();
+        let (intent, summary, t) = describe(&s, &search, &flags, "someone walks out ahead", &mut b).unwrap();
+        assert_eq!(
+            (intent.behavior, intent.adversary.as_deref(), intent.ttc_s),
+            (Behavior::StepOut, Some("ped"), Some(2.5))
+        );
+        assert!((t - 0.5).abs() < 1e-12 && summary.contains("pedestrian"), "{t} {summary}");
+        let reprompt = &b.requests[1].messages.last().unwrap().content;
+        assert!(reprompt.contains("pedestrians can perform step_out only"), "{reprompt}");
+        // Explicit flags win over the reading.
+        let filled = intent.fill(&ReasonOptions { ttc_s: Some(3.0), ..flags });
+        assert_eq!((filled.behavior, filled.ttc_s), (Some(Behavior::StepOut), Some(3.0)));
+    }
 }

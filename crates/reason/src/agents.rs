@@ -22,9 +22,24 @@ use crate::{Outcome, Protocol, ReasonError, ReasonOptions, Repair, Validity, Val
 use scene::Behavior;
 use serde_json::json;
 
+/// What `auto` chooses among: every behaviour some road user in `world` may perform (its class;
+/// with `--adversary`, only that one's).
+pub fn auto_behaviours(world: &World) -> Vec<Behavior> {
+    let out: Vec<Behavior> = Behavior::EVERY
+        .into_iter()
+        .filter(|b| world.actors().any(|v| crate::behavior::class_can(v.class, *b)))
+        .collect();
+    // Nobody in range: every behaviour, so that each says why.
+    if out.is_empty() {
+        Behavior::EVERY.to_vec()
+    } else {
+        out
+    }
+}
+
 /// The planner's best candidate for the behaviour (or for every behaviour when `None`).
 pub fn best_candidate(world: &World, o: &ReasonOptions) -> Result<Candidate, String> {
-    let behaviours: Vec<Behavior> = o.behavior.map_or(Behavior::ALL.to_vec(), |b| vec![b]);
+    let behaviours: Vec<Behavior> = o.behavior.map_or_else(|| auto_behaviours(world), |b| vec![b]);
     let mut reasons = Vec::new();
     let mut best: Option<Candidate> = None;
     for b in behaviours {
@@ -54,7 +69,8 @@ pub fn describe_candidate(world: &World, c: &Candidate) -> String {
         format!("; no clear path: its path touches logged actor {id} at t0 + {:.1} s first", t - world.t0)
     });
     format!(
-        "vehicle {} is {:.1} m {} and {:.1} m {} of the ego at {:.1} m/s; {} brings it into the {} zone at t0 + {:.1} s with a predicted centre MinTTC of {:.2} s",
+        "{} {} is {:.1} m {} and {:.1} m {} of the ego at {:.1} m/s; {} brings it into the {} zone at t0 + {:.1} s with a predicted centre MinTTC of {:.2} s",
+        v.class.as_str(),
         c.vehicle_id,
         l.x.abs(),
         if l.x >= 0.0 { "ahead" } else { "behind" },
@@ -87,7 +103,7 @@ pub fn run_llm(world: &World, o: &ReasonOptions, backend: &mut dyn Backend) -> R
         Ok(c) => c,
         Err(reason) => return Ok(Outcome::NoFeasible { reason }),
     };
-    let behaviours: Vec<Behavior> = o.behavior.map_or(Behavior::ALL.to_vec(), |b| vec![b]);
+    let behaviours: Vec<Behavior> = o.behavior.map_or_else(|| auto_behaviours(world), |b| vec![b]);
     let small = backend.capability() == Capability::LabelsOnly;
     let labels_only = small && o.protocol == Protocol::Ours;
     let agent = backend.name();
@@ -169,7 +185,7 @@ pub fn run_llm(world: &World, o: &ReasonOptions, backend: &mut dyn Backend) -> R
         })?
     } else {
         let mut schema = crate::reply::zone_schema(
-            &world.vehicles.iter().map(|v| v.id.clone()).collect::<Vec<_>>(),
+            &world.actors().map(|v| v.id.clone()).collect::<Vec<_>>(),
             &zone_names,
             &behaviour_names,
         );

@@ -20,7 +20,7 @@
 //! Both plan for `BASELINE_TTC_S` (3 s) or what is left of the log; the evaluation then runs every
 //! agent's plan over one common horizon (`cases`).
 
-use crate::behavior::{candidate_zones, spec};
+use crate::behavior::{candidate_zones, class_can, spec, who_performs};
 use crate::target::sample_target;
 use crate::validate::{parse_risk, ZoneDecision};
 use crate::world::{Vehicle, World};
@@ -29,7 +29,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use scene::glam::DVec2;
 use scene::zones::zone_rect;
-use scene::{Behavior, Waypoint, Zone};
+use scene::{Behavior, ObjectClass, Waypoint, Zone};
 
 pub const BASELINE_TTC_S: f64 = 3.0;
 
@@ -40,14 +40,21 @@ fn duration(world: &World, dt: f64) -> Option<f64> {
 }
 
 /// Integrates a unicycle from the vehicle's state: `accel(t)`, `yaw_rate(t)` (held per step).
-fn unicycle(world: &World, v: &Vehicle, dur: f64, dt: f64, mut input: impl FnMut(f64) -> (f64, f64)) -> Vec<Waypoint> {
+fn unicycle(
+    world: &World,
+    v: &Vehicle,
+    dur: f64,
+    dt: f64,
+    top_speed: f64,
+    mut input: impl FnMut(f64) -> (f64, f64),
+) -> Vec<Waypoint> {
     let n = (dur / dt).round() as usize;
     let (mut p, mut speed) = (v.now.p, v.now.speed());
     let mut heading = if speed > 0.5 { v.now.v.y.atan2(v.now.v.x) } else { v.now.heading };
     let mut out = vec![Waypoint { t: world.t0, x: p.x, y: p.y }];
     for k in 0..n {
         let (a, w) = input(k as f64 * dt);
-        let s_next = (speed + a * dt).clamp(0.0, 35.0);
+        let s_next = (speed + a * dt).clamp(0.0, top_speed);
         let avg = (speed + s_next) / 2.0;
         heading += w * dt;
         p += DVec2::new(heading.cos(), heading.sin()) * avg * dt;
@@ -102,6 +109,12 @@ fn manoeuvre(b: Behavior, y0: f64, zone_y: f64) -> Manoeuvre {
         }
         SuddenStart => (|_| 2.0, shift(0.0, 3.0), "pull away at +2 m/s^2 onto the ego's lane line over 3 s"),
         OpposingDrift => (|_| 0.0, shift(zone_y, 2.0), "drift onto the zone's centre line over 2 s"),
+        // Half a cosine peaks at pi/2 times its mean speed: walking pace on average.
+        StepOut => (
+            |_| 0.0,
+            shift(0.0, (y0.abs() / scene::mobility::WALKING_SPEED).max(1.0)),
+            "step out onto the ego's lane line at walking pace",
+        ),
     };
     Manoeuvre { accel, lateral, what: what.to_string() }
 }
@@ -132,17 +145,26 @@ pub fn rule_based(world: &World, o: &ReasonOptions) -> Outcome {
     let Some(dur) = duration(world, o.dt) else {
         return Outcome::NoFeasible { reason: "the log ends too soon after t0".into() };
     };
-    let behaviours: Vec<Behavior> = o.behavior.map_or(Behavior::ALL.to_vec(), |b| vec![b]);
-    // Vehicles are nearest first; the first one positioned for a behaviour performs it.
+    let behaviours: Vec<Behavior> = o.behavior.map_or(Behavior::EVERY.to_vec(), |b| vec![b]);
+    // Vehicles are nearest first; the first one positioned for a behaviour performs it. The
+    // paper's behaviours are performed by vehicles, as in the original; `step_out` by the nearest
+    // positioned pedestrian (pedestrians come after every vehicle and can only step out).
+    let pedestrians = world.vulnerable.iter().filter(|v| v.class == ObjectClass::Pedestrian);
     let chosen = world
         .vehicles
         .iter()
+        .chain(pedestrians)
         .find_map(|v| behaviours.iter().find_map(|b| candidate_zones(world, v, *b).ok().map(|z| (v, *b, z[0]))));
     let Some((v, behavior, zone)) = chosen else {
         return Outcome::NoFeasible {
             reason: match o.behavior {
                 Some(b) => {
-                    format!("no vehicle within range is positioned for {} ({})", b.as_str(), spec(b).description)
+                    format!(
+                        "no {} within range is positioned for {} ({})",
+                        who_performs(b),
+                        b.as_str(),
+                        spec(b).description
+                    )
                 }
                 None => "no vehicle within range is positioned for any behaviour".into(),
             },
@@ -153,7 +175,8 @@ pub fn rule_based(world: &World, o: &ReasonOptions) -> Outcome {
     let waypoints = follow(world, v, &m, dur, o.dt);
     let end = waypoints.last().map(|w| DVec2::new(w.x, w.y)).expect("non-empty");
     let why = format!(
-        "rule-based baseline: vehicle {} is the nearest positioned for {}; {}",
+        "rule-based baseline: {} {} is the nearest positioned for {}; {}",
+        v.class.as_str(),
         v.id,
         behavior.as_str(),
         m.what
@@ -166,25 +189,44 @@ pub fn random(world: &World, o: &ReasonOptions) -> Outcome {
     let Some(dur) = duration(world, o.dt) else {
         return Outcome::NoFeasible { reason: "the log ends too soon after t0".into() };
     };
-    if world.vehicles.is_empty() {
-        return Outcome::NoFeasible { reason: "no vehicle within range".into() };
+    // Vehicles, as in the original; pedestrians for `step_out`, which no vehicle performs.
+    let pool: Vec<&Vehicle> = match o.behavior {
+        Some(b) if !class_can(ObjectClass::Vehicle, b) => world.actors().filter(|v| class_can(v.class, b)).collect(),
+        _ => world.vehicles.iter().collect(),
+    };
+    if pool.is_empty() {
+        return Outcome::NoFeasible {
+            reason: match o.behavior {
+                Some(b) if !class_can(ObjectClass::Vehicle, b) => {
+                    format!("no {} within range", who_performs(b))
+                }
+                _ => "no vehicle within range".into(),
+            },
+        };
     }
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
     // The target first: it never depends on the motion drawn after it.
     let zones: &[Zone] = o.behavior.map_or(&Zone::ALL[..], |b| spec(b).zones);
     let zone = zones[rng.random_range(0..zones.len())];
     let target = sample_target(world, zone, o.layout, dur, &mut rng);
-    let v = &world.vehicles[rng.random_range(0..world.vehicles.len())];
+    let v = pool[rng.random_range(0..pool.len())];
     let holds = (dur / 0.5).ceil() as usize + 1;
     let inputs: Vec<(f64, f64)> =
         (0..holds).map(|_| (rng.random_range(-3.0..=3.0), rng.random_range(-0.3..=0.3))).collect();
-    let waypoints = unicycle(world, v, dur, o.dt, |t| inputs[((t + 1e-9) / 0.5) as usize]);
+    let top = v.class.motion_limits().map_or(35.0, |l| l.max_speed);
+    let waypoints = unicycle(world, v, dur, o.dt, top, |t| inputs[((t + 1e-9) / 0.5) as usize]);
     let behavior = o.behavior.unwrap_or(match zone {
         Zone::Front => Behavior::SuddenBraking,
         Zone::Back => Behavior::RearTailgating,
         Zone::Left | Zone::Right => Behavior::SidePass,
     });
-    let d = decision(v, zone, behavior, dur, format!("random baseline: seeded perturbations of vehicle {}", v.id));
+    let d = decision(
+        v,
+        zone,
+        behavior,
+        dur,
+        format!("random baseline: seeded perturbations of {} {}", v.class.as_str(), v.id),
+    );
     Outcome::Plan { plan: make_plan(world, o, &d, waypoints, target, "random"), stats: None }
 }
 

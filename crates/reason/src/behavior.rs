@@ -5,10 +5,16 @@
 //!
 //! `--behavior` conditions every agent through this table: prompts include only the chosen
 //! behaviour's description and candidates; validation rejects vehicles or zones outside it.
+//!
+//! Who may perform what ([`class_can`]): vehicles the paper's eight behaviours; pedestrians
+//! `step_out` only (stepping or running out into the ego's path); cyclists the behaviours that are
+//! a swerve or a close pass on a bicycle: `sudden_cut_in` and `side_pass` (from the edge of the
+//! ego's lane, a bike lane or the adjacent lane) and `lead_swerve` (riding ahead in the ego's
+//! lane). Their motion limits are [`scene::mobility`]'s.
 
 use crate::world::{Vehicle, World};
 use scene::frames::wrap_angle;
-use scene::{Behavior, Zone};
+use scene::{Behavior, ObjectClass, Zone};
 
 /// How the adversary's end velocity is chosen relative to the ego at the target time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,6 +27,8 @@ pub enum EndPolicy {
     AlongsideClosing,
     /// Ends moving against the ego (head-on).
     Oncoming,
+    /// Ends crossing the ego's path on foot, heading for the target.
+    Crossing,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -96,6 +104,13 @@ pub fn spec(b: Behavior) -> BehaviorSpec {
             4.5,
             EndPolicy::SlowerAhead,
         ),
+        StepOut => (
+            "a pedestrian at the roadside or on the road ahead steps or runs out into the ego's path",
+            &[Zone::Front],
+            1.5,
+            4.0,
+            EndPolicy::Crossing,
+        ),
     };
     BehaviorSpec { behavior: b, description, zones, ttc_min, ttc_max, end_policy }
 }
@@ -143,14 +158,63 @@ impl Relation {
     }
 }
 
+/// Whether a road user of `class` can perform `b` at all (see the module documentation).
+pub fn class_can(class: ObjectClass, b: Behavior) -> bool {
+    use Behavior::*;
+    match class {
+        ObjectClass::Vehicle => b != StepOut,
+        ObjectClass::Pedestrian => b == StepOut,
+        ObjectClass::Cyclist => matches!(b, SuddenCutIn | SidePass | LeadSwerve),
+        ObjectClass::Sign | ObjectClass::Other => false,
+    }
+}
+
+/// Who can perform `b`, in words: "vehicle", "pedestrian", "vehicle or cyclist".
+pub fn who_performs(b: Behavior) -> String {
+    let who: Vec<&str> = ObjectClass::ALL.into_iter().filter(|c| class_can(*c, b)).map(|c| c.as_str()).collect();
+    who.join(" or ")
+}
+
+/// Why a road user of `class` cannot perform `b` ("a pedestrian, and pedestrians can perform
+/// step_out only"); `None` if it can.
+pub fn class_refusal(class: ObjectClass, b: Behavior) -> Option<String> {
+    if class_can(class, b) {
+        return None;
+    }
+    let name = class.as_str();
+    let can: Vec<&str> = Behavior::EVERY.into_iter().filter(|x| class_can(class, *x)).map(|x| x.as_str()).collect();
+    let who: Vec<&str> = ObjectClass::ALL.into_iter().filter(|c| class_can(*c, b)).map(|c| c.as_str()).collect();
+    Some(match can.len() {
+        0 => format!("a {name}, and a {name} cannot be an adversary (only vehicles, pedestrians and cyclists can)"),
+        _ if class == ObjectClass::Vehicle => {
+            format!("a vehicle, and only {}s can perform {}", who.join(" and "), b.as_str())
+        }
+        _ => format!("a {name}, and {name}s can perform {} only", can.join(", ")),
+    })
+}
+
 /// Whether `v` can perform `b`, and the zones it can aim at; `Err` says why not.
 pub fn candidate_zones(world: &World, v: &Vehicle, b: Behavior) -> Result<Vec<Zone>, String> {
     use Behavior::*;
+    if let Some(why) = class_refusal(v.class, b) {
+        return Err(why);
+    }
     let r = Relation::of(world, v);
     let half_l = world.ego_length / 2.0;
     let (x, y) = (r.local.x, r.local.y);
     let side = if y >= 0.0 { Zone::Left } else { Zone::Right };
     let ok = |cond: bool, why: &str| if cond { Ok(()) } else { Err(why.to_string()) };
+    if v.class == ObjectClass::Cyclist && matches!(b, SuddenCutIn | SidePass) {
+        // A cyclist rides at the edge of the ego's lane, in a bike lane or in the adjacent lane.
+        let band = (1.0..=1.5 * LANE_WIDTH).contains(&y.abs()) && r.same_direction();
+        return if b == SuddenCutIn {
+            ok(x > -half_l && band, "not beside or ahead of the ego, 1 to 5.4 m to its side, riding its way")?;
+            Ok(vec![Zone::Front])
+        } else {
+            ok(x < half_l && band, "not behind or beside the ego, 1 to 5.4 m to its side, riding its way")?;
+            Ok(vec![side])
+        };
+    }
     match b {
         SuddenBraking | LeadSwerve => {
             ok(
@@ -194,6 +258,10 @@ pub fn candidate_zones(world: &World, v: &Vehicle, b: Behavior) -> Result<Vec<Zo
         OpposingDrift => {
             ok(x > half_l && r.oncoming() && y.abs() < 3.0 * LANE_WIDTH, "not oncoming ahead of the ego")?;
             Ok(vec![Zone::Front, side])
+        }
+        StepOut => {
+            ok(x > half_l && y.abs() < 3.0 * LANE_WIDTH, "not ahead of the ego within 3 lanes of its path")?;
+            Ok(vec![Zone::Front])
         }
     }
 }

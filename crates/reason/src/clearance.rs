@@ -17,13 +17,14 @@ use parry2d_f64::query::intersection_test;
 use parry2d_f64::shape::Cuboid;
 use scene::glam::DVec2;
 use scene::motion::{sample_series, Pose2};
-use scene::{Scene, Waypoint};
+use scene::{ObjectClass, Scene, Waypoint};
 
 /// Below this speed (m/s) the heading along the path is held.
 const HOLD_HEADING_BELOW: f64 = 0.5;
 
 struct Actor {
     id: String,
+    class: ObjectClass,
     runs: Vec<Vec<Pose2>>,
     cuboid: Cuboid,
     radius: f64,
@@ -66,11 +67,18 @@ impl Bystanders {
                 let [l, w, _] = t.median_size_lwh();
                 (l > 0.0 && w > 0.0).then(|| {
                     let (cuboid, radius) = cuboid(l, w);
-                    Actor { id: t.id.clone(), runs: scene.track_segments(t), cuboid, radius }
+                    Actor { id: t.id.clone(), class: t.class, runs: scene.track_segments(t), cuboid, radius }
                 })
             })
             .collect();
         Bystanders { actors }
+    }
+
+    /// Without the actors of `class` (a pedestrian among pedestrians: people walk in groups,
+    /// closer than their boxes).
+    pub fn ignoring(mut self, class: ObjectClass) -> Self {
+        self.actors.retain(|a| a.class != class);
+        self
     }
 
     /// The first actor (id, time) the box `length` x `width` touches moving along `waypoints`,

@@ -3,15 +3,17 @@
 //! that rules it out ("track 1584 cannot perform sudden_cut_in into zone left: ..."), and a
 //! constrained planner search ([`search`]) that only tries that vehicle, zone and TTC. The Zone
 //! agent's reply is held to the same constraints by [`crate::validate::validate_zone`].
+//! A pedestrian or cyclist is refused first for its class ("track 12 cannot perform
+//! sudden_braking: it is a pedestrian, and pedestrians can perform step_out only").
 
-use crate::behavior::{candidate_zones, spec};
+use crate::behavior::{candidate_zones, class_can, class_refusal, spec, who_performs};
 use crate::planner::{search_vehicle_zone, ttc_grid, Candidate};
 use crate::validate::snap_ttc;
 use crate::world::World;
 use crate::ReasonOptions;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use scene::{Behavior, ObjectClass, Scene};
+use scene::{Behavior, Scene};
 
 /// Why the constraints cannot be met at t0 before any search (`Err` names the constraint).
 pub fn check(scene: &Scene, world: &World, o: &ReasonOptions) -> Result<(), String> {
@@ -55,8 +57,13 @@ pub fn check(scene: &Scene, world: &World, o: &ReasonOptions) -> Result<(), Stri
     if scene.ego.track_id.as_deref() == Some(id) {
         return cannot("it is the ego".into());
     }
-    if track.class != ObjectClass::Vehicle {
-        return cannot(format!("it is a {:?}, and only vehicles can be adversaries", track.class).to_lowercase());
+    // The class first: a pedestrian asked to brake is refused for being a pedestrian.
+    let class_behaviours: Vec<Behavior> = Behavior::EVERY.into_iter().filter(|b| class_can(track.class, *b)).collect();
+    if let Some(why) = o.behavior.and_then(|b| class_refusal(track.class, b)) {
+        return cannot(format!("it is {why}"));
+    }
+    if class_behaviours.is_empty() {
+        return cannot(format!("it is a {0}, and a {0} cannot be an adversary", track.class.as_str()));
     }
     let Some(v) = world.vehicle(id) else {
         let full = World::new(scene, o.t0, f64::INFINITY);
@@ -70,7 +77,7 @@ pub fn check(scene: &Scene, world: &World, o: &ReasonOptions) -> Result<(), Stri
             None => format!("it is not logged at t0 = {:.2} s", o.t0),
         });
     };
-    let behaviours: Vec<Behavior> = o.behavior.map_or(Behavior::ALL.to_vec(), |b| vec![b]);
+    let behaviours: Vec<Behavior> = o.behavior.map_or(class_behaviours, |b| vec![b]);
     let mut why = Vec::new();
     for b in behaviours {
         match candidate_zones(world, v, b) {
@@ -106,7 +113,7 @@ pub fn search(world: &World, b: Behavior, o: &ReasonOptions) -> Result<Vec<Candi
     let mut rng = ChaCha8Rng::seed_from_u64(o.seed);
     let mut out = Vec::new();
     let mut eligible = 0;
-    for v in &world.vehicles {
+    for v in world.actors() {
         let Ok(zones) = candidate_zones(world, v, b) else { continue };
         for zone in zones.into_iter().filter(|z| o.zone.is_none_or(|q| q == *z)) {
             eligible += 1;
@@ -117,10 +124,11 @@ pub fn search(world: &World, b: Behavior, o: &ReasonOptions) -> Result<Vec<Candi
         let zone = o.zone.map_or(String::new(), |z| format!(" into zone {}", z.as_str()));
         let ttc = o.ttc_s.map_or(String::new(), |t| format!(" with TTC {t} s"));
         return Err(if eligible == 0 {
-            format!("no vehicle within range is positioned for {}{zone}", b.as_str())
+            format!("no {} within range is positioned for {}{zone}", who_performs(b), b.as_str())
         } else {
             format!(
-                "{eligible} vehicle/zone pair(s) fit {}{zone}, but no trajectory{ttc} stays within the speed, acceleration, jerk, yaw-rate and curvature limits",
+                "{eligible} {}/zone pair(s) fit {}{zone}, but no trajectory{ttc} stays within the speed, acceleration, jerk, yaw-rate and curvature limits",
+                who_performs(b),
                 b.as_str()
             )
         });

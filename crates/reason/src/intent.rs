@@ -45,6 +45,18 @@ impl Intent {
         )
     }
 
+    /// `o` with this reading where `o` leaves a choice open: explicit flags (`o`'s behaviour,
+    /// adversary, zone and TTC) win over the sentence.
+    pub fn fill(&self, o: &ReasonOptions) -> ReasonOptions {
+        ReasonOptions {
+            behavior: o.behavior.or(Some(self.behavior)),
+            adversary: o.adversary.clone().or_else(|| self.adversary.clone()),
+            zone: o.zone.or(self.zone),
+            ttc_s: o.ttc_s.or(self.ttc_s),
+            ..o.clone()
+        }
+    }
+
     /// `o` with this reading as the behaviour and constraints.
     pub fn apply(&self, o: &ReasonOptions) -> ReasonOptions {
         ReasonOptions {
@@ -95,7 +107,7 @@ pub fn who_is(world: &World, v: &crate::world::Vehicle) -> String {
         if y >= 0.0 { "left" } else { "right" },
         r.speed,
         if r.speed < 1.0 { " (stopped)" } else { "" },
-        size_class(v.length),
+        if v.class.is_vulnerable() { v.class.as_str() } else { size_class(v.length) },
         v.length
     )
 }
@@ -103,7 +115,7 @@ pub fn who_is(world: &World, v: &crate::world::Vehicle) -> String {
 fn system() -> String {
     "You turn a user's one-sentence description of a dangerous traffic situation into a request for a corner-case \
 generator. Pick the behaviour from the library that matches it, the vehicle the sentence refers to (its id from the list, \
-or \"any\" if it names none), the collision zone around the ego if the sentence implies one (else \"any\"), and the time \
+or \"any\" if it names none; pedestrians can only step out, cyclists only cut in, side-pass or swerve), the collision zone around the ego if the sentence implies one (else \"any\"), and the time \
 to collision in seconds if the sentence says how soon (else 0). Colours are not known: match position, order, size and \
 motion. Reply with one JSON object: behavior, vehicle_id, zone, ttc_s, explanation (one short sentence)."
         .into()
@@ -111,12 +123,12 @@ motion. Reply with one JSON object: behavior, vehicle_id, zone, ttc_s, explanati
 
 fn user(world: &World, sentence: &str) -> String {
     let mut s = String::from("Behaviour library:\n");
-    for b in Behavior::ALL {
+    for b in Behavior::EVERY {
         let zs: Vec<&str> = spec(b).zones.iter().map(|z| z.as_str()).collect();
         let _ = writeln!(s, "- {}: {} (zones {})", b.as_str(), spec(b).description, zs.join("/"));
     }
-    let _ = writeln!(s, "Vehicles around the ego at t0 (lanes of {LANE_WIDTH} m):");
-    for v in world.vehicles.iter().take(16) {
+    let _ = writeln!(s, "Road users around the ego at t0 (lanes of {LANE_WIDTH} m):");
+    for v in world.vehicles.iter().take(16).chain(world.vulnerable.iter().take(8)) {
         let _ = writeln!(s, "- id {}: {}", v.id, who_is(world, v));
     }
     let _ = write!(s, "The log continues {:.1} s after t0.\nUser: \"{sentence}\"", world.horizon());
@@ -132,10 +144,11 @@ pub fn read(
     sentence: &str,
     backend: &mut dyn Backend,
 ) -> Result<Result<Intent, Vec<Violation>>, ReasonError> {
-    let ids: Vec<String> =
-        std::iter::once("any".to_string()).chain(world.vehicles.iter().map(|v| v.id.clone())).collect();
+    let ids: Vec<String> = std::iter::once("any".to_string())
+        .chain(world.vehicles.iter().take(16).chain(world.vulnerable.iter().take(8)).map(|v| v.id.clone()))
+        .collect();
     let zones: Vec<&str> = std::iter::once("any").chain(Zone::ALL.iter().map(|z| z.as_str())).collect();
-    let behaviours: Vec<&str> = Behavior::ALL.iter().map(|b| b.as_str()).collect();
+    let behaviours: Vec<&str> = Behavior::EVERY.iter().map(|b| b.as_str()).collect();
     let small = backend.capability() == Capability::LabelsOnly;
     let schema = json!({
         "type": "object", "additionalProperties": false,

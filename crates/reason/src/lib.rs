@@ -23,6 +23,7 @@ pub mod summary;
 pub mod target;
 pub mod trajectory_agent;
 pub mod validate;
+pub mod vru;
 pub mod world;
 
 use scene::glam::DVec2;

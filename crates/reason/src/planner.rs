@@ -135,6 +135,8 @@ pub fn end_velocity(policy: EndPolicy, ego: &Kin, target: DVec2, adversary: &Veh
             h * (v_e + 2.0) + toward * (closing * 0.5).min(3.0)
         }
         EndPolicy::Oncoming => -h * adversary.now.speed().max(6.0),
+        // On foot, heading for the target (`vru` tries faster paces too).
+        EndPolicy::Crossing => (target - adversary.now.p).normalize_or_zero() * scene::mobility::WALKING_SPEED,
     }
 }
 
@@ -165,6 +167,10 @@ pub fn trajectory_to_aim(
     dt: f64,
     aim_ttc: f64,
 ) -> Option<Planned> {
+    if v.class != scene::ObjectClass::Vehicle {
+        // Pedestrians and cyclists: their own motion and limits.
+        return crate::vru::trajectory_to(world, v, b, target, ttc, dt, aim_ttc);
+    }
     let t_end = world.t0 + ttc;
     let ego_end = world.ego_kin(t_end);
     let v_end = end_velocity(end_policy(b, world, target, ttc), &ego_end, target, v, aim_ttc);
@@ -282,7 +288,7 @@ pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64
             spec(b).ttc_min
         ));
     }
-    for v in &world.vehicles {
+    for v in world.actors() {
         let Ok(zones) = candidate_zones(world, v, b) else { continue };
         eligible += 1;
         for zone in zones {
@@ -291,9 +297,11 @@ pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64
     }
     if out.is_empty() {
         return Err(if eligible == 0 {
-            format!("no vehicle within range is positioned for {} ({})", b.as_str(), spec(b).description)
+            let who = crate::behavior::who_performs(b);
+            format!("no {who} within range is positioned for {} ({})", b.as_str(), spec(b).description)
         } else {
-            format!("{eligible} vehicle(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
+            let who = crate::behavior::who_performs(b);
+            format!("{eligible} {who}(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
         });
     }
     out.sort_by(|a, b| a.score.total_cmp(&b.score));

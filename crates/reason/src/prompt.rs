@@ -29,7 +29,7 @@ pub fn zones_text(world: &World, layout: ZoneLayout) -> String {
 }
 
 pub fn behaviours_text(behavior: Option<Behavior>) -> String {
-    let list: Vec<Behavior> = behavior.map_or(Behavior::ALL.to_vec(), |b| vec![b]);
+    let list: Vec<Behavior> = behavior.map_or(Behavior::EVERY.to_vec(), |b| vec![b]);
     let mut s = String::from(if behavior.is_some() {
         "Requested dangerous behaviour:\n"
     } else {

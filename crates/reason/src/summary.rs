@@ -101,8 +101,18 @@ pub fn describe(world: &World, behavior: Option<Behavior>, opts: &SummaryOptions
     let mut listed: Vec<&crate::world::Vehicle> = world.vehicles.iter().filter(|v| candidate(v)).collect();
     listed.extend(world.vehicles.iter().filter(|v| !candidate(v)));
     listed.truncate(opts.max_vehicles);
+    // Pedestrians and cyclists only where they can perform the behaviour (any, with auto).
+    let vru = |v: &crate::world::Vehicle| {
+        behavior.map_or(Behavior::EVERY.to_vec(), |b| vec![b]).into_iter().any(|b| candidate_zones(world, v, b).is_ok())
+    };
+    let vrus: Vec<&crate::world::Vehicle> = world.vulnerable.iter().filter(|v| vru(v)).take(4).collect();
     let _ = writeln!(s, "Vehicles ({} of {} within range):", listed.len(), world.vehicles.len());
-    for v in listed {
+    let n_vehicles = listed.len();
+    listed.extend(vrus);
+    for (k, v) in listed.into_iter().enumerate() {
+        if k == n_vehicles {
+            s.push_str("Pedestrians and cyclists that can perform it:\n");
+        }
         let r = Relation::of(world, v);
         let lane = (lane_offset(world, v.now.p) / LANE_WIDTH).round() as i32;
         let lane_txt = match lane {
@@ -111,7 +121,8 @@ pub fn describe(world: &World, behavior: Option<Behavior>, opts: &SummaryOptions
             l => format!("{} lane(s) right", -l),
         };
         let dir = r.direction_label();
-        let _ = write!(s, "- id {}: {:.1} x {:.1} m, {lane_txt}, {dir}, history:", v.id, v.length, v.width);
+        let class = if k < n_vehicles { String::new() } else { format!("{}, ", v.class.as_str()) };
+        let _ = write!(s, "- id {}: {class}{:.1} x {:.1} m, {lane_txt}, {dir}, history:", v.id, v.length, v.width);
         fmt_samples(&mut s, &history(world, &v.run, opts));
         s.push('\n');
     }

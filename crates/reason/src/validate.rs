@@ -311,6 +311,11 @@ pub fn validate_trajectory(
                 "waypoints",
                 format!("acceleration reaches {:.1} m/s^2 (at most {MAX_ACCEL})", l.max_accel),
             ));
+        } // A pedestrian or cyclist is held to its class's limits too.
+        if let Some(veh) = world.vehicle(&d.vehicle_id).filter(|x| x.class.is_vulnerable()) {
+            if let Err(why) = crate::vru::check_limits(&w, veh.class, veh.now.heading) {
+                v.extend(why.into_iter().map(|m| Violation::new("waypoints", m)));
+            }
         }
     }
     if v.is_empty() {

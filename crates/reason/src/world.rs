@@ -43,10 +43,12 @@ pub fn kin_at(series: &[Pose2], t: f64) -> Option<Kin> {
     Some(Kin { t, p: p.position(), v: velocity_at(series, t)?, heading: p.heading })
 }
 
-/// A vehicle other than the ego, as seen at t0.
+/// A road user other than the ego, as seen at t0: a vehicle, or (in [`World::vulnerable`]) a
+/// pedestrian or cyclist.
 #[derive(Clone, Debug)]
 pub struct Vehicle {
     pub id: String,
+    pub class: ObjectClass,
     pub length: f64,
     pub width: f64,
     /// The logged run that contains t0 (poses up to the end of the run: planning uses only the
@@ -64,6 +66,9 @@ pub struct World<'a> {
     pub ego_width: f64,
     /// Vehicles present at t0 within `radius` of the ego, nearest first.
     pub vehicles: Vec<Vehicle>,
+    /// Pedestrians and cyclists present at t0 within `radius`, nearest first: adversaries only
+    /// for the behaviours their class can perform ([`crate::behavior::class_can`]).
+    pub vulnerable: Vec<Vehicle>,
     /// Last time with a logged ego pose.
     pub t_last: f64,
     /// The map's lanes, when it has some (map-aware plans, [`crate::lane_motion`]).
@@ -79,7 +84,7 @@ fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
         Some(Kin { t: t0, p: p.position(), v: DVec2::new(v.x, v.y), heading: p.heading })
     })?;
     let [length, width, _] = track.median_size_lwh();
-    Some(Vehicle { id: track.id.clone(), length, width, run, now })
+    Some(Vehicle { id: track.id.clone(), class: track.class, length, width, run, now })
 }
 
 impl<'a> World<'a> {
@@ -87,14 +92,19 @@ impl<'a> World<'a> {
     pub fn new(scene: &'a Scene, t0: f64, radius: f64) -> Option<Self> {
         let ego_series = scene.ego_series();
         let ego_now = kin_at(&ego_series, t0)?;
-        let mut vehicles: Vec<Vehicle> = scene
-            .tracks
-            .iter()
-            .filter(|t| t.class == ObjectClass::Vehicle && scene.ego.track_id.as_deref() != Some(t.id.as_str()))
-            .filter_map(|t| vehicle_at(scene, t, t0))
-            .filter(|v| v.now.p.distance(ego_now.p) <= radius)
-            .collect();
-        vehicles.sort_by(|a, b| a.now.p.distance(ego_now.p).total_cmp(&b.now.p.distance(ego_now.p)));
+        let near = |keep: fn(ObjectClass) -> bool| {
+            let mut out: Vec<Vehicle> = scene
+                .tracks
+                .iter()
+                .filter(|t| keep(t.class) && scene.ego.track_id.as_deref() != Some(t.id.as_str()))
+                .filter_map(|t| vehicle_at(scene, t, t0))
+                .filter(|v| v.now.p.distance(ego_now.p) <= radius)
+                .collect();
+            out.sort_by(|a, b| a.now.p.distance(ego_now.p).total_cmp(&b.now.p.distance(ego_now.p)));
+            out
+        };
+        let vehicles = near(|c| c == ObjectClass::Vehicle);
+        let vulnerable = near(ObjectClass::is_vulnerable);
         let t_last = ego_series.last().map_or(t0, |p| p.t);
         Some(World {
             scene,
@@ -106,6 +116,7 @@ impl<'a> World<'a> {
             lanes: scene.map.as_ref().and_then(crate::lanes::Lanes::new),
             ego_series,
             vehicles,
+            vulnerable,
         })
     }
 
@@ -114,12 +125,19 @@ impl<'a> World<'a> {
         let mut w = World::new(scene, o.t0, o.radius)?;
         if let Some(id) = &o.adversary {
             w.vehicles.retain(|v| &v.id == id);
+            w.vulnerable.retain(|v| &v.id == id);
         }
         Some(w)
     }
 
+    /// Every candidate adversary: the vehicles (nearest first), then the pedestrians and cyclists.
+    pub fn actors(&self) -> impl Iterator<Item = &Vehicle> {
+        self.vehicles.iter().chain(&self.vulnerable)
+    }
+
+    /// A vehicle, pedestrian or cyclist by id.
     pub fn vehicle(&self, id: &str) -> Option<&Vehicle> {
-        self.vehicles.iter().find(|v| v.id == id)
+        self.actors().find(|v| v.id == id)
     }
 
     /// The ego's logged pose at `t` (clamped to its span).

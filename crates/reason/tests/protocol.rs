@@ -53,7 +53,7 @@ fn impossible_constraints_name_the_constraint() {
     assert!(why.contains("beyond the 5 m radius"), "{why}");
     if let Some(p) = s.tracks.iter().find(|t| t.class == scene::ObjectClass::Pedestrian) {
         let why = no_plan(&s, &ReasonOptions { adversary: Some(p.id.clone()), ..base });
-        assert!(why.contains("it is a pedestrian, and only vehicles can be adversaries"), "{why}");
+        assert!(why.contains("it is a pedestrian, and pedestrians can perform step_out only"), "{why}");
     }
 }
 

@@ -9,6 +9,7 @@ pub mod executed;
 pub mod format;
 pub mod frames;
 pub mod map;
+pub mod mobility;
 pub mod model;
 pub mod motion;
 pub mod output;

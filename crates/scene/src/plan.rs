@@ -30,9 +30,13 @@ pub enum Behavior {
     OpposingDrift,
     /// The lead vehicle swerves around an obstacle in an S-shape.
     LeadSwerve,
+    /// A pedestrian at the roadside steps or runs out into the ego's path (not one of the paper's
+    /// eight: pedestrians only, see `mobility`).
+    StepOut,
 }
 
 impl Behavior {
+    /// The paper's library of eight vehicle behaviours (the default evaluation list).
     pub const ALL: [Behavior; 8] = [
         Behavior::SuddenBraking,
         Behavior::SuddenCutIn,
@@ -42,6 +46,20 @@ impl Behavior {
         Behavior::SuddenStart,
         Behavior::OpposingDrift,
         Behavior::LeadSwerve,
+    ];
+
+    /// Every behaviour: the paper's eight and the pedestrian's `step_out` (what `auto` chooses
+    /// among, and what names parse to).
+    pub const EVERY: [Behavior; 9] = [
+        Behavior::SuddenBraking,
+        Behavior::SuddenCutIn,
+        Behavior::RearTailgating,
+        Behavior::SidePass,
+        Behavior::BlindSpotAppearance,
+        Behavior::SuddenStart,
+        Behavior::OpposingDrift,
+        Behavior::LeadSwerve,
+        Behavior::StepOut,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -54,6 +72,7 @@ impl Behavior {
             Behavior::SuddenStart => "sudden_start",
             Behavior::OpposingDrift => "opposing_drift",
             Behavior::LeadSwerve => "lead_swerve",
+            Behavior::StepOut => "step_out",
         }
     }
 }
@@ -61,8 +80,8 @@ impl Behavior {
 impl std::str::FromStr for Behavior {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Behavior::ALL.into_iter().find(|b| b.as_str() == s).ok_or_else(|| {
-            let names: Vec<&str> = Behavior::ALL.iter().map(|b| b.as_str()).collect();
+        Behavior::EVERY.into_iter().find(|b| b.as_str() == s).ok_or_else(|| {
+            let names: Vec<&str> = Behavior::EVERY.iter().map(|b| b.as_str()).collect();
             format!("unknown behaviour `{s}` (one of {})", names.join(", "))
         })
     }
@@ -270,7 +289,8 @@ pub(crate) mod tests {
 
     #[test]
     fn behaviour_names_round_trip() {
-        for b in Behavior::ALL {
+        assert_eq!(&Behavior::EVERY[..8], &Behavior::ALL[..]);
+        for b in Behavior::EVERY {
             assert_eq!(b.as_str().parse::<Behavior>().unwrap(), b);
             assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{}\"", b.as_str()));
         }

@@ -8,6 +8,7 @@ use scene::motion::{sample_series, Pose2};
 use scene::{ObjectClass, Scene};
 
 /// A replayed actor: its pose runs (gaps split them) and its box.
+#[derive(Clone)]
 pub struct Replayed {
     pub id: String,
     pub class: ObjectClass,

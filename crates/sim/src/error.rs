@@ -24,6 +24,8 @@ pub enum SimError {
     Track(#[from] TrackError),
     #[error("rollout: {0}")]
     Reference(String),
+    #[error("plan: `adversary_track`: track `{id}` is a {class}; {backend} drives vehicles only (the built-in physics moves pedestrians and cyclists)")]
+    VehicleOnly { id: String, class: &'static str, backend: &'static str },
     /// Its messages say they are about CARLA (and are not repeated as a source).
     #[error(transparent)]
     Carla(#[from] crate::carla::CarlaError),

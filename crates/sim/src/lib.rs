@@ -6,6 +6,7 @@
 //! collision checks against the replayed log (`collision`) and judges the rollout's physical
 //! validity (`validity`). No CARLA server is needed; users who have one can run the same plans in
 //! CARLA 0.9.16 through a bridge process (`carla`), with the same control law and output.
+//! Pedestrians and cyclists are not cars: they move by their class's model and limits (`vru`).
 
 pub mod actuation;
 pub mod carla;
@@ -20,6 +21,7 @@ pub mod smooth;
 pub mod tracker;
 pub mod tyre;
 pub mod validity;
+pub mod vru;
 
 pub use error::SimError;
 pub use rollout::{simulate, RolloutConfig};

@@ -8,6 +8,7 @@
 //! The reference is the logged path and the plan's waypoints **smoothed** together (`smooth.rs`):
 //! perception jitter in the log neither sets the initial speed and heading nor reaches the
 //! steering. The rollout's physical validity (`validity.rs`) is written into the output.
+//! Pedestrians and cyclists are prepared the same way but move by their own model (`vru.rs`).
 
 use crate::actuation::ActuationParams;
 use crate::collision::{cuboid, first_overlap, replayed_actors, Replayed};
@@ -121,6 +122,10 @@ pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result
 /// Runs the plan with the built-in physics. Checks the plan against the scene first.
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
     let prep = prepare(scene, plan, cfg)?;
+    if let Some(limits) = prep.adversary.class.motion_limits() {
+        // A pedestrian or cyclist: its own motion model (`vru`), not a car's.
+        return crate::vru::simulate(scene, plan, cfg, &prep, limits);
+    }
     let (adv_box, adv_radius) = cuboid(prep.size[0], prep.size[1]);
     let mut contact: Option<Contact> = None;
     let tracker = Tracker { config: &cfg.tracker, vehicle: &cfg.vehicle, actuation: &cfg.actuation };
@@ -152,7 +157,9 @@ pub fn finish(
 ) -> Executed {
     let size = prep.size;
     let size_box = BoxSize { length: size[0], width: size[1] };
-    let validity = assess(records, prep.t0, contact.as_ref(), scene.map.as_ref(), size_box, &cfg.validity);
+    // Road edges bound vehicles and cyclists; a pedestrian steps off the kerb by design.
+    let map = scene.map.as_ref().filter(|_| prep.adversary.class != scene::ObjectClass::Pedestrian);
+    let validity = assess(records, prep.t0, contact.as_ref(), map, size_box, &cfg.validity);
     let ego_series = scene.ego_series();
     let steps: Vec<ExecutedStep> = records
         .iter()

@@ -13,7 +13,8 @@ pub struct Args {
     /// Comma-separated agents: planner, local, openai, rule, random.
     #[arg(long, default_value = "planner,local,rule,random")]
     agents: String,
-    /// `all` or comma-separated behaviours.
+    /// `all` (the paper's eight), `every` (and `step_out`, pedestrians only) or comma-separated
+    /// behaviours.
     #[arg(long, default_value = "all")]
     behaviors: String,
     /// `every:<s>s` (from <s> while 3 s of log remain) or a comma-separated list of seconds.
@@ -39,6 +40,9 @@ pub struct Args {
     no_plots: bool,
     #[command(flatten)]
     constraints: super::constraints::ConstraintArgs,
+    /// Read once per scene, at its first t0; that scene's attempts use the reading's behaviour.
+    #[command(flatten)]
+    describe: super::describe::DescribeArgs,
     #[command(flatten)]
     protocol: super::constraints::ProtocolArgs,
     #[command(flatten)]
@@ -55,12 +59,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let scenes = dirs.iter().map(|d| scene::load_scene(d)).collect::<Result<Vec<_>, _>>()?;
     let agents: Vec<AgentName> =
         a.agents.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?;
-    let behaviors: Vec<scene::Behavior> = if a.behaviors == "all" {
-        scene::Behavior::ALL.to_vec()
-    } else {
-        a.behaviors.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?
+    let mut behaviors: Vec<scene::Behavior> = match a.behaviors.as_str() {
+        "all" => scene::Behavior::ALL.to_vec(),
+        "every" => scene::Behavior::EVERY.to_vec(),
+        list => list.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?,
     };
     let t0: T0Spec = a.t0.parse().map_err(anyhow::Error::msg)?;
+    let reason_opts = a.protocol.apply(a.constraints.apply(ReasonOptions::default())?);
+    let mut requests = std::collections::BTreeMap::new();
+    if let Some(text) = &a.describe.describe {
+        if a.behaviors != "all" {
+            anyhow::bail!("--describe chooses the behaviour per scene: leave out --behaviors");
+        }
+        let mut reader = a.describe.backend(&a.llm, agents.contains(&AgentName::Openai))?;
+        let read = cases::describe::read_scenes(&scenes, &t0, &reason_opts, text, reader.as_mut())
+            .map_err(anyhow::Error::msg)?;
+        for (name, r) in read {
+            super::describe::show(
+                text,
+                &reader.name(),
+                &format!(" in {name} at t0 = {:.1} s", r.t0_s),
+                &r.intent,
+                &r.summary,
+            );
+            requests.insert(name, r.request);
+        }
+        behaviors =
+            scene::Behavior::EVERY.into_iter().filter(|b| requests.values().any(|r| r.behavior == *b)).collect();
+    }
     let cfg = EvalConfig {
         agents,
         behaviors,
@@ -69,7 +95,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         out: a.out.clone(),
         plots: !a.no_plots,
         case: CaseConfig {
-            reason: a.protocol.apply(a.constraints.apply(ReasonOptions::default())?),
+            reason: reason_opts,
             rollout: sim::RolloutConfig::default(),
             refine_rounds: a.refine_rounds,
             simulate: a.physics.simulate_fn()?,
@@ -77,6 +103,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 horizon: a.horizon.parse().map_err(anyhow::Error::msg)?,
                 after_plan: a.after_plan.parse().map_err(anyhow::Error::msg)?,
             },
+            requests,
         },
     };
     let llm = a.llm.clone();

@@ -3,6 +3,7 @@ pub mod asset;
 pub mod backend;
 pub mod constraints;
 pub mod demo;
+pub mod describe;
 pub mod eval_cases;
 pub mod export_xodr;
 pub mod ingest;

@@ -56,14 +56,8 @@ pub struct Args {
     retries: usize,
     #[arg(long, default_value_t = 0.7)]
     temperature: f64,
-    /// A sentence describing the corner case ("the van two cars ahead brakes hard"): an LLM agent
-    /// reads it as a behaviour, an adversary, a zone and a TTC (shown before planning); explicit
-    /// --behavior, --adversary, --zone and --ttc take precedence.
-    #[arg(long)]
-    describe: Option<String>,
-    /// The LLM that reads --describe (default: the --agent's if it is an LLM, else local).
-    #[arg(long, value_enum)]
-    describe_with: Option<AgentKind>,
+    #[command(flatten)]
+    describe: super::describe::DescribeArgs,
     #[command(flatten)]
     constraints: super::constraints::ConstraintArgs,
     #[command(flatten)]
@@ -81,13 +75,7 @@ pub fn parse_behavior(s: &str) -> anyhow::Result<Option<scene::Behavior>> {
 
 /// Reads `--describe` with an LLM, prints the reading, and returns `o` with it (explicit flags win).
 fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str) -> anyhow::Result<ReasonOptions> {
-    let kind =
-        a.describe_with.unwrap_or(if a.agent == AgentKind::Openai { AgentKind::Openai } else { AgentKind::Local });
-    let mut b = match kind {
-        AgentKind::Openai => a.llm.openai()?,
-        AgentKind::Local => a.llm.local()?,
-        other => anyhow::bail!("--describe-with: {other:?} is not an LLM (local or openai)"),
-    };
+    let mut b = a.describe.backend(&a.llm, a.agent == AgentKind::Openai)?;
     match reason::intent::describe(scene, &o, text, b.as_mut()).context("reading --describe failed")? {
         Err(v) => {
             let why: Vec<String> = v.iter().map(|x| x.to_string()).collect();
@@ -99,15 +87,8 @@ fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str
             )
         }
         Ok((intent, summary)) => {
-            println!("read \"{text}\" ({}, {}) as: {summary}", b.name(), validity_text(&intent.validity));
-            let read = intent.apply(&o);
-            Ok(ReasonOptions {
-                behavior: o.behavior.or(read.behavior),
-                adversary: o.adversary.clone().or(read.adversary),
-                zone: o.zone.or(read.zone),
-                ttc_s: o.ttc_s.or(read.ttc_s),
-                ..o
-            })
+            super::describe::show(text, &b.name(), "", &intent, &summary);
+            Ok(intent.fill(&o))
         }
     }
 }
@@ -126,7 +107,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ..ReasonOptions::default()
     };
     let mut options = a.protocol.apply(a.constraints.apply(options)?);
-    if let Some(text) = &a.describe {
+    if let Some(text) = &a.describe.describe {
         options = read_description(&a, &scene, options, text)?;
     }
     let mut backend: Box<dyn reason::backend::Backend> = match a.agent {
@@ -145,7 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     match reason::reason(&scene, &options, agent).context("reasoning failed")? {
         Outcome::NoFeasible { reason } => {
-            println!("no feasible vehicle for this behaviour at t0 = {:.2} s: {reason}", a.t0);
+            println!("no feasible adversary for this behaviour at t0 = {:.2} s: {reason}", a.t0);
             Ok(())
         }
         Outcome::Rejected { stats, reason } => {
@@ -159,8 +140,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         Outcome::Plan { plan, stats } => {
             scene::format::write_json_pretty(&a.out, &plan)?;
+            let class = scene.track(&plan.adversary_track).map_or("track", |t| t.class.as_str());
             println!(
-                "{}: vehicle {} -> {} zone, {}, TTC {:.2} s, risk {:?}",
+                "{}: {class} {} -> {} zone, {}, TTC {:.2} s, risk {:?}",
                 plan.agent,
                 plan.adversary_track,
                 plan.target_zone.as_str(),

@@ -53,14 +53,16 @@ pub struct RunArgs {
     /// The trained model directory (`carla-gs train`).
     #[arg(long)]
     model: PathBuf,
-    /// The dangerous behaviour.
+    /// The dangerous behaviour (required unless --describe gives one).
     #[arg(long)]
-    behavior: String,
+    behavior: Option<String>,
     /// planner, local, openai, rule or random.
     #[arg(long, default_value = "planner")]
     agent: String,
     #[command(flatten)]
     constraints: super::constraints::ConstraintArgs,
+    #[command(flatten)]
+    describe: super::describe::DescribeArgs,
     /// Analysis time (s from the first frame); default: search every 0.5 s for the first
     /// physically valid, successful case.
     #[arg(long)]
@@ -89,20 +91,29 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let (mut model, _) = recon::model_io::load_model(&a.model)?;
     a.replace.apply(&mut model, &a.scene)?;
     let agent: AgentName = a.agent.parse().map_err(anyhow::Error::msg)?;
-    let behavior = a.behavior.parse().map_err(|e: String| anyhow::anyhow!("--behavior: {e}"))?;
-    let req = CaseRequest {
-        behavior,
-        agent,
-        adversary: a.constraints.adversary.clone(),
-        zone: a.constraints.zone()?,
-        ttc_s: a.constraints.ttc,
-        seed: a.seed,
-        seeds_per_t0: a.seeds_per_t0,
-        refine_rounds: a.refine_rounds,
-    };
+    let behavior =
+        a.behavior.as_deref().map(|b| b.parse().map_err(|e: String| anyhow::anyhow!("--behavior: {e}"))).transpose()?;
     let t0 = match a.t0 {
         Some(t) => T0Choice::At(t),
         None => T0Choice::Search(T0Spec::Every(0.5)),
+    };
+    let mut flags = a.constraints.apply(reason::ReasonOptions { behavior, seed: a.seed, ..Default::default() })?;
+    if let Some(text) = &a.describe.describe {
+        let mut reader = a.describe.backend(&a.llm, agent == AgentName::Openai)?;
+        let (intent, summary, t) =
+            pipeline::case::describe(&scene, &t0, &flags, text, reader.as_mut()).map_err(anyhow::Error::msg)?;
+        super::describe::show(text, &reader.name(), &format!(" at t0 = {t:.1} s"), &intent, &summary);
+        flags = intent.fill(&flags);
+    }
+    let req = CaseRequest {
+        behavior: flags.behavior.ok_or_else(|| anyhow::anyhow!("--behavior is required (or --describe)"))?,
+        agent,
+        adversary: flags.adversary,
+        zone: flags.zone,
+        ttc_s: flags.ttc_s,
+        seed: a.seed,
+        seeds_per_t0: a.seeds_per_t0,
+        refine_rounds: a.refine_rounds,
     };
     let mut llm = match agent {
         AgentName::Local => Some(a.llm.local()?),

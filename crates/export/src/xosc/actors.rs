@@ -58,7 +58,8 @@ pub(super) fn collect_actors(scene: &Scene, executed: &Executed, include_others:
         Actor {
             name: ADVERSARY.into(),
             role: "adversary",
-            class: ObjectClass::Vehicle,
+            // A pedestrian or cyclist adversary is written as one (`Pedestrian`, `Vehicle bicycle`).
+            class: scene.track(&adv_id).map_or(ObjectClass::Vehicle, |t| t.class),
             track_id: Some(adv_id.clone()),
             size_lwh: executed.adversary.size_lwh,
             runs: vec![adv_run],

@@ -60,6 +60,10 @@ pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig, opts: &CarlaOpt
     let dt = cfg.tracker.control_dt_s;
     check(opts, dt)?;
     let prep = prepare(scene, plan, cfg)?;
+    if prep.adversary.class.is_vulnerable() {
+        let (id, class) = (prep.adversary.id.clone(), prep.adversary.class.as_str());
+        return Err(SimError::VehicleOnly { id, class, backend: "the CARLA bridge" });
+    }
     let frame = CarlaFrame::around(scene.frames[0].world_from_ego.translation());
     let xodr_opts = export::XodrOptions { origin: frame.origin, ..Default::default() };
     let net = export::build_road_network(scene, &xodr_opts).map_err(|e| CarlaError::Map(e.to_string()))?;
