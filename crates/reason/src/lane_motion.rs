@@ -203,6 +203,7 @@ mod tests {
             id: "a".into(),
             length: 4.5,
             width: 2.0,
+            class: scene::ObjectClass::Vehicle,
             run: vec![],
             now: Kin { t: 0.0, p, v: DVec2::from_angle(h) * speed, heading: h },
         }
@@ -293,6 +294,7 @@ mod drift_tests {
         }
         let map = Map { lanes, ..Default::default() };
         let car = Vehicle {
+            class: scene::ObjectClass::Vehicle,
             id: "o".into(),
             length: 4.5,
             width: 2.0,

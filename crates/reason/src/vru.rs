@@ -202,5 +202,15 @@ fn measure(world: &World, v: &Vehicle, waypoints: Vec<Waypoint>, dt: f64, peak_a
         near = near.ignoring(ObjectClass::Pedestrian);
     }
     let contact_with = near.first_contact(&waypoints, v.now.heading, v.length, v.width);
-    Planned { waypoints, min_ttc, peak_accel, closest_local: closest, contact_with }
+    // Pedestrians and cyclists move in free space here: their paths are never lane-aware.
+    let path_note = format!("{:?}: free path (lanes are for vehicles)", v.class).to_lowercase();
+    Planned {
+        waypoints,
+        min_ttc,
+        peak_accel,
+        closest_local: closest,
+        contact_with,
+        path: scene::PlanPath::StraightLine,
+        path_note,
+    }
 }

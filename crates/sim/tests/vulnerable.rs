@@ -91,6 +91,7 @@ fn plan(adversary: &str, behavior: Behavior, ttc: f64, at: impl Fn(f64) -> DVec2
         dt_s: 0.1,
         target: Some([end.x, end.y]),
         seed: None,
+        path: None,
         waypoints,
     }
 }
