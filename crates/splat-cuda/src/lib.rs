@@ -22,7 +22,7 @@ pub use cudarc;
 pub use device::Gpu;
 pub use inspect::{Decisions, DeviceProj};
 pub use resident::{GradientsOut, ImageIo, WorldInputs, PROJ_EXTENT, PROJ_FLOATS};
-pub use state::Session;
+pub use state::{grow, Session};
 
 /// Why the CUDA backend cannot run.
 #[derive(Debug, thiserror::Error)]

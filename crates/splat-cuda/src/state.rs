@@ -13,7 +13,7 @@ pub(crate) const PROJ: usize = 16;
 pub(crate) const G2: usize = 13;
 
 /// Grows `buf` to hold at least `n` values (contents undefined after growing).
-pub(crate) fn grow<T: DeviceRepr + ValidAsZeroBits>(
+pub fn grow<T: DeviceRepr + ValidAsZeroBits>(
     stream: &Arc<CudaStream>,
     buf: &mut CudaSlice<T>,
     n: usize,

@@ -24,6 +24,15 @@ pub(crate) struct Segment {
     pub xf: Option<Box<Xf>>,
 }
 
+impl Segment {
+    /// The kernels' per-segment arguments: rows, first model row, first world row, whether it
+    /// moves, and its transform.
+    fn args(&self) -> (i32, i32, i32, i32, &Xf) {
+        let xf: &Xf = self.xf.as_deref().unwrap_or(&Xf::IDENTITY);
+        (self.n as i32, self.src0 as i32, self.dst0 as i32, self.xf.is_some() as i32, xf)
+    }
+}
+
 /// The segments of the scene at time `t` (background first, then the actors alive then).
 pub(crate) fn segments(model: &SceneModel, scene: &Scene, dm: &DeviceModel, t: f64) -> Vec<Segment> {
     let mut out = vec![Segment { src0: 0, dst0: 0, n: dm.offsets[1], xf: None }];
@@ -69,9 +78,7 @@ pub(crate) fn compose(
 ) -> Result<(), DriverError> {
     let (kc_full, kc_act) = (sh_coeffs(dm.degree) as i32, sh_coeffs(degree) as i32);
     for seg in segs.iter().filter(|g| g.n > 0) {
-        let (n, src0, dst0) = (seg.n as i32, seg.src0 as i32, seg.dst0 as i32);
-        let moved = seg.xf.is_some() as i32;
-        let xf: &Xf = seg.xf.as_deref().unwrap_or(&Xf::IDENTITY);
+        let (n, src0, dst0, moved, xf) = seg.args();
         // SAFETY: model rows src0..src0+n and world rows dst0..dst0+n exist (offsets, world_inputs).
         unsafe {
             s.launch_builder(&k.compose_segment)
@@ -128,9 +135,7 @@ pub(crate) fn scatter(
     let (pf, pe) = (PROJ_FLOATS as i32, PROJ_EXTENT as i32);
     let (dens, half_side) = (ex.densifying as i32, 0.5 * ex.max_side as f32);
     for seg in segs.iter().filter(|g| g.n > 0) {
-        let (n, src0, dst0) = (seg.n as i32, seg.src0 as i32, seg.dst0 as i32);
-        let moved = seg.xf.is_some() as i32;
-        let xf: &Xf = seg.xf.as_deref().unwrap_or(&Xf::IDENTITY);
+        let (n, src0, dst0, moved, xf) = seg.args();
         // SAFETY: as in `compose`; the world gradients hold the rows of the last render.
         unsafe {
             s.launch_builder(&k.scatter_segment)

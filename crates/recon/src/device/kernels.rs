@@ -98,7 +98,16 @@ pub(crate) struct Xf {
 unsafe impl DeviceRepr for Xf {}
 
 impl Xf {
-    pub const IDENTITY: Xf = Xf { r: [0.0; 9], t: [0.0; 3], c: 1.0, s: 0.0, m: [0.0; 256] };
+    /// No motion (the background's; the kernels do not read it when a segment is not moved).
+    pub const IDENTITY: Xf = {
+        let mut m = [0.0; 256];
+        let mut k = 0;
+        while k < 16 {
+            m[k * 16 + k] = 1.0;
+            k += 1;
+        }
+        Xf { r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], t: [0.0; 3], c: 1.0, s: 0.0, m }
+    };
 }
 
 /// `Win`: the SSIM window (recon::ssim's 11 taps, sigma 1.5, normalised).

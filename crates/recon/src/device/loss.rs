@@ -6,8 +6,9 @@
 use super::kernels::{linear, CamK, Kernels, Win};
 use super::targets::ViewTargets;
 use crate::loss::{LossParts, LossWeights};
-use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DeviceRepr, DriverError, PushKernelArg, ValidAsZeroBits};
+use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, PushKernelArg};
 use splat_cuda::ImageIo;
+use splat_cuda::{grow, CudaError};
 use std::sync::Arc;
 
 /// Indices into `acc`.
@@ -32,17 +33,6 @@ pub(crate) struct Scratch {
     pub counts: CudaSlice<u32>,
 }
 
-fn grow<T: DeviceRepr + ValidAsZeroBits>(
-    s: &Arc<CudaStream>,
-    b: &mut CudaSlice<T>,
-    n: usize,
-) -> Result<(), DriverError> {
-    if b.len() < n {
-        *b = s.alloc_zeros(n)?;
-    }
-    Ok(())
-}
-
 impl Scratch {
     pub fn new(s: &Arc<CudaStream>) -> Result<Scratch, DriverError> {
         Ok(Scratch {
@@ -60,7 +50,7 @@ impl Scratch {
         })
     }
 
-    fn fit(&mut self, s: &Arc<CudaStream>, p: usize) -> Result<(), DriverError> {
+    fn fit(&mut self, s: &Arc<CudaStream>, p: usize) -> Result<(), CudaError> {
         for (b, k) in [
             (&mut self.out, 3),
             (&mut self.g_out, 3),
@@ -96,7 +86,7 @@ pub(crate) fn launch(
     t: &ViewTargets,
     sky: SkyIn,
     w: &LossWeights,
-) -> Result<(), DriverError> {
+) -> Result<(), CudaError> {
     let (width, height) = (cam.width as i32, cam.height as i32);
     let p = (cam.width * cam.height) as usize;
     sc.fit(s, p)?;

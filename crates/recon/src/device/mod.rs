@@ -133,24 +133,24 @@ impl<'a> DeviceTrainer<'a> {
         let opts = RenderOptions::default();
         let s = self.gpu.stream().clone();
         let segs = compose::segments(&self.state.model, self.scene, &self.dm, view.time);
-        let w = self.gpu.world_inputs(&mut self.sess, compose::world_rows(&segs), degree).map_err(cuda)?;
+        let n_world = compose::world_rows(&segs);
+        let w = self.gpu.world_inputs(&mut self.sess, n_world, degree).map_err(cuda)?;
         compose::compose(&self.k, &s, &self.dm, &segs, degree, w).map_err(dev)?;
         self.gpu.forward_resident(&mut self.sess, &view.cam, &opts).map_err(cuda)?;
         let t = self.targets[vi].as_ref().ok_or_else(|| ReconError::Input(format!("view {vi} is held out")))?;
         s.memset_zeros(&mut self.dm.sky_g).map_err(dev)?;
         let io = self.gpu.image_io(&mut self.sess).map_err(cuda)?;
         let sky = loss::SkyIn { res: self.state.model.sky.res, texels: &self.dm.sky, grad: &mut self.dm.sky_g };
-        loss::launch(&self.k, &s, &mut self.scratch, io, &view.cam, t, sky, &self.cfg.loss).map_err(dev)?;
+        loss::launch(&self.k, &s, &mut self.scratch, io, &view.cam, t, sky, &self.cfg.loss).map_err(cuda)?;
         self.gpu.backward_resident(&mut self.sess).map_err(cuda)?;
         let gw = self.gpu.gradients_out(&mut self.sess).map_err(cuda)?;
-        let n_world = compose::world_rows(&segs) as i32;
         // SAFETY: `valid` holds the n_world rows of the last render; counts two values.
         unsafe {
             s.launch_builder(&self.k.count_valid)
-                .arg(&n_world)
+                .arg(&(n_world as i32))
                 .arg(gw.valid)
                 .arg(&mut self.scratch.counts)
-                .launch(linear(n_world as usize))
+                .launch(linear(n_world))
                 .map_err(dev)?;
         }
         let ex = compose::Extras {
