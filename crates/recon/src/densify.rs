@@ -8,18 +8,13 @@
 //! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
 //! box are pruned, so a car's model cannot smear into the street it drives through.
 
-// Index loops mirror the per-component formulas in the comments above.
-#![allow(clippy::needless_range_loop)]
-
 use crate::config::DensifyConfig;
-use crate::model::{push_row, push_zeros, retain};
+use crate::densify_rule::{row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};
+use crate::model::{empty, push_row, push_zeros};
 use crate::optim::AdamState;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
-use splat::gaussians::sigmoid;
-use splat::project::rotation;
 use splat::Gaussians;
+
+pub use crate::densify_rule::{finish_codes, Counts, Rule};
 
 /// Per-set statistics between densification steps.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -50,18 +45,67 @@ impl Stats {
         self.seen[i] += 1;
         self.max_radius[i] = self.max_radius[i].max(radius);
     }
+
+    /// The average NDC gradient of row `i` (0 when it was never seen).
+    pub fn average(&self, i: usize) -> f64 {
+        if self.seen[i] > 0 {
+            self.grad_sum[i] / self.seen[i] as f64
+        } else {
+            0.0
+        }
+    }
 }
 
-/// What one densification step did.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Counts {
-    pub cloned: usize,
-    pub split: usize,
-    pub pruned: usize,
+/// The codes of every row of a set (`densify_rule`), before `finish_codes`.
+pub fn plan(g: &Gaussians, stats: &Stats, rule: &Rule) -> Vec<u8> {
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let mut sorted: Vec<f64> = (0..g.len()).map(|i| stats.average(i)).collect();
+        sorted.sort_by(f64::total_cmp);
+        tracing::debug!(
+            median = sorted.get(g.len() / 2).copied().unwrap_or(0.0),
+            p99 = sorted.get(g.len() * 99 / 100).copied().unwrap_or(0.0),
+            threshold = rule.threshold,
+            "average screen-space gradients"
+        );
+    }
+    (0..g.len())
+        .map(|i| {
+            let avg = stats.average(i);
+            let (m, s, q, o) = (g.means[i], g.log_scales[i], g.rotations[i], g.opacity_logits[i]);
+            row_code(rule, i as u64, m, s, q, o, avg, stats.max_radius[i])
+        })
+        .collect()
 }
 
-fn max_scale(g: &Gaussians, i: usize) -> f64 {
-    g.log_scales[i].iter().fold(f64::MIN, |a, b| a.max(*b)).exp()
+/// Rebuilds a set from its finished codes: the kept rows in order, then every kept child in its
+/// parent's order (a clone, or the two split halves); moments follow their rows and children
+/// start at zero.
+pub fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u8], rule: &Rule) {
+    let (mut og, mut om, mut ov) = (empty(g.sh_degree), empty(m.sh_degree), empty(v.sh_degree));
+    for (i, code) in codes.iter().enumerate() {
+        if code & KEEP != 0 {
+            push_row(&mut og, g, i);
+            push_row(&mut om, m, i);
+            push_row(&mut ov, v, i);
+        }
+    }
+    for (i, &code) in codes.iter().enumerate() {
+        if code & CLONE_KEPT != 0 {
+            push_row(&mut og, g, i);
+        }
+        for (child, bit) in [(0, SPLIT0_KEPT), (1, SPLIT1_KEPT)] {
+            if code & SPLIT != 0 && code & bit != 0 {
+                push_row(&mut og, g, i);
+                let j = og.len() - 1;
+                (og.means[j], og.log_scales[j]) =
+                    split_child(rule.seed, i as u64, child, g.means[i], g.log_scales[i], g.rotations[i]);
+            }
+        }
+    }
+    let added = og.len() - om.len();
+    push_zeros(&mut om, added);
+    push_zeros(&mut ov, added);
+    (*g, *m, *v) = (og, om, ov);
 }
 
 /// Clones, splits and prunes set `set` of the model (`g` with its moments `m`, `v`).
@@ -78,74 +122,10 @@ pub fn densify_and_prune(
     actor_box: Option<[f64; 3]>,
     seed: u64,
 ) -> Counts {
-    let n = g.len();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut counts = Counts::default();
-    let mut remove = vec![false; n];
-    let avg: Vec<f64> =
-        (0..n).map(|i| if stats.seen[i] > 0 { stats.grad_sum[i] / stats.seen[i] as f64 } else { 0.0 }).collect();
-    let mut sorted = avg.clone();
-    sorted.sort_by(f64::total_cmp);
-    tracing::debug!(
-        median = sorted.get(n / 2).copied().unwrap_or(0.0),
-        p99 = sorted.get(n * 99 / 100).copied().unwrap_or(0.0),
-        threshold = cfg.grad_threshold,
-        "average screen-space gradients"
-    );
-    if grow {
-        for i in 0..n {
-            let avg = if stats.seen[i] > 0 { stats.grad_sum[i] / stats.seen[i] as f64 } else { 0.0 };
-            if avg < cfg.grad_threshold {
-                continue;
-            }
-            if max_scale(g, i) <= cfg.percent_dense * extent {
-                let row = g.clone_row(i);
-                push_row(g, &row, 0);
-                counts.cloned += 1;
-            } else {
-                let r = rotation(g.rotations[i]);
-                let s = g.log_scales[i].map(f64::exp);
-                for _ in 0..2 {
-                    let z: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
-                    let local: [f64; 3] = std::array::from_fn(|a| z[a] * s[a]);
-                    let row = g.clone_row(i);
-                    push_row(g, &row, 0);
-                    let j = g.len() - 1;
-                    for a in 0..3 {
-                        g.means[j][a] += (0..3).map(|b| r[a][b] * local[b]).sum::<f64>();
-                        g.log_scales[j][a] = (s[a] / 1.6).ln();
-                    }
-                }
-                remove[i] = true;
-                counts.split += 1;
-            }
-        }
-    }
-    let added = g.len() - n;
-    push_zeros(m, added);
-    push_zeros(v, added);
-    let mut keep = vec![true; g.len()];
-    for i in 0..g.len() {
-        let old = i < n;
-        let transparent = sigmoid(g.opacity_logits[i]) < cfg.prune_opacity;
-        let big = prune_big
-            && ((old && cfg.max_screen_size > 0.0 && stats.max_radius[i] > cfg.max_screen_size)
-                || max_scale(g, i) > cfg.max_world_fraction * extent);
-        let outside = actor_box.is_some_and(|size| {
-            (0..3).any(|a| g.means[i][a].abs() > 0.55 * size[a])
-                || max_scale(g, i) > 0.5 * size.iter().fold(0.0f64, |m, v| m.max(*v))
-        });
-        if (old && remove[i]) || transparent || big || outside {
-            keep[i] = false;
-            counts.pruned += usize::from(!(old && remove[i]));
-        }
-    }
-    // Never prune a set to nothing (an actor seen from nowhere keeps its start).
-    if keep.iter().any(|k| *k) {
-        retain(g, &keep);
-        retain(m, &keep);
-        retain(v, &keep);
-    }
+    let rule = Rule::new(cfg, extent, grow, prune_big, actor_box, seed);
+    let mut codes = plan(g, stats, &rule);
+    let counts = finish_codes(&mut codes);
+    apply(g, m, v, &codes, &rule);
     counts
 }
 
@@ -157,24 +137,6 @@ pub fn reset_opacity(sets: &mut [&mut Gaussians], state: &mut AdamState) {
     }
     for s in state.m.iter_mut().chain(state.v.iter_mut()) {
         s.opacity_logits.iter_mut().for_each(|o| *o = 0.0);
-    }
-}
-
-/// One row of a set as a set of its own (for cloning rows of a set into itself).
-trait CloneRow {
-    fn clone_row(&self, i: usize) -> Gaussians;
-}
-
-impl CloneRow for Gaussians {
-    fn clone_row(&self, i: usize) -> Gaussians {
-        Gaussians {
-            means: vec![self.means[i]],
-            log_scales: vec![self.log_scales[i]],
-            rotations: vec![self.rotations[i]],
-            opacity_logits: vec![self.opacity_logits[i]],
-            sh_degree: self.sh_degree,
-            sh: self.sh_of(i).to_vec(),
-        }
     }
 }
 

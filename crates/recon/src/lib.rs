@@ -16,6 +16,7 @@ pub mod compose;
 pub mod config;
 pub mod data;
 pub mod densify;
+pub mod densify_rule;
 pub mod device;
 pub mod error;
 pub mod eval;

@@ -133,8 +133,8 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     }
     let seconds = t0.elapsed().as_secs_f64();
     if let Runner::Device(d) = &trainer {
-        let (secs, times) = d.host_density_seconds();
-        tracing::info!(seconds = secs, times, "density control on the host (copies both ways included)");
+        let (secs, times) = d.density_seconds();
+        tracing::info!(seconds = secs, times, "density control on the device");
     }
     let state = trainer.state()?;
     checkpoint::save(&ckpt_path, state)?;

@@ -10,7 +10,7 @@ use crate::checkpoint::TrainState;
 use crate::compose::{compose_into, reset_gradients, scatter_gradients, Composed, Layers};
 use crate::config::TrainConfig;
 use crate::data::View;
-use crate::densify::{densify_and_prune, reset_opacity, Counts, Stats};
+use crate::densify::{apply, finish_codes, plan, reset_opacity, Counts, Rule, Stats};
 use crate::loss::{view_loss, ChannelGrads, LossParts, Rendered};
 use crate::optim::{adam_step, means_lr, AdamState};
 use crate::sky::Sky;
@@ -184,7 +184,8 @@ impl<'a, B: Backend> Trainer<'a, B> {
         }
     }
 
-    fn density_control(&mut self, n: usize) -> Option<Counts> {
+    /// Density control after 1-based iteration `n` (nothing when the schedule says so).
+    pub fn density_control(&mut self, n: usize) -> Option<Counts> {
         density_control(&mut self.state, &self.cfg, self.extent, n)
     }
 }
@@ -203,46 +204,50 @@ pub(crate) fn view_for(seed: u64, train_views: &[usize], it: usize) -> usize {
     order[it % n]
 }
 
-/// Whether density control does anything on 1-based iteration `n` (so a device trainer knows
-/// when to bring the model to the host).
-pub(crate) fn density_due(cfg: &TrainConfig, n: usize) -> bool {
+/// What density control does on 1-based iteration `n`: one rule per set (background, then the
+/// actors) when it clones, splits and prunes, and whether it resets opacities afterwards.
+pub(crate) struct DensityStep {
+    pub rules: Option<Vec<Rule>>,
+    pub reset: bool,
+}
+
+/// The 3DGS schedule on 1-based iteration `n` for a model of `rows` Gaussians whose actors have
+/// the boxes `actor_boxes`.
+pub(crate) fn density_step(
+    cfg: &TrainConfig,
+    extent: f64,
+    n: usize,
+    rows: usize,
+    actor_boxes: impl Iterator<Item = [f64; 3]>,
+) -> DensityStep {
+    let d = &cfg.densify;
     let (from, until, reset) = cfg.densify_schedule();
-    n < until && ((n > from && n.is_multiple_of(cfg.densify.interval)) || (reset > 0 && n.is_multiple_of(reset)))
+    if n >= until {
+        return DensityStep { rules: None, reset: false };
+    }
+    let rules = (n > from && n.is_multiple_of(d.interval)).then(|| {
+        let (grow, prune_big) = (rows < d.max_gaussians, reset > 0 && n > reset);
+        std::iter::once(None)
+            .chain(actor_boxes.map(Some))
+            .enumerate()
+            .map(|(i, b)| Rule::new(d, extent, grow, prune_big, b, derive_seed(cfg.seed, 2, (n * 1000 + i) as u64)))
+            .collect()
+    });
+    DensityStep { rules, reset: reset > 0 && n.is_multiple_of(reset) }
 }
 
 /// The 3DGS schedule on 1-based iteration `n`.
 pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent: f64, n: usize) -> Option<Counts> {
-    let d = cfg.densify.clone();
-    let (from, until, reset) = cfg.densify_schedule();
-    if n >= until {
-        return None;
-    }
-    let mut out = None;
-    if n > from && n.is_multiple_of(d.interval) {
-        let grow = state.model.gaussian_count() < d.max_gaussians;
-        let prune_big = reset > 0 && n > reset;
+    let boxes = state.model.actors.iter().map(|a| a.size_lwh);
+    let step = density_step(cfg, extent, n, state.model.gaussian_count(), boxes);
+    let st = &mut *state;
+    let out = step.rules.map(|rules| {
         let mut total = Counts::default();
-        let st = &mut *state;
-        let boxes: Vec<Option<[f64; 3]>> =
-            std::iter::once(None).chain(st.model.actors.iter().map(|a| Some(a.size_lwh))).collect();
         let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
-        for (i, g) in sets.into_iter().enumerate() {
-            let seed = derive_seed(cfg.seed, 2, (n * 1000 + i) as u64);
-            let c = densify_and_prune(
-                g,
-                &mut st.adam.m[i],
-                &mut st.adam.v[i],
-                &st.stats[i],
-                &d,
-                extent,
-                grow,
-                prune_big,
-                boxes[i],
-                seed,
-            );
-            total.cloned += c.cloned;
-            total.split += c.split;
-            total.pruned += c.pruned;
+        for (i, (g, rule)) in sets.into_iter().zip(&rules).enumerate() {
+            let mut codes = plan(g, &st.stats[i], rule);
+            total.add(finish_codes(&mut codes));
+            apply(g, &mut st.adam.m[i], &mut st.adam.v[i], &codes, rule);
         }
         for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
             s.grad_sum.clear();
@@ -250,10 +255,9 @@ pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent:
             s.max_radius.clear();
             s.fit(g.len());
         }
-        out = Some(total);
-    }
-    if reset > 0 && n.is_multiple_of(reset) {
-        let st = &mut *state;
+        total
+    });
+    if step.reset {
         let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
         reset_opacity(&mut sets, &mut st.adam);
     }

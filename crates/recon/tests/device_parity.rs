@@ -87,29 +87,49 @@ fn rel(a: &[f64], b: &[f64]) -> f64 {
     }
 }
 
-#[test]
-fn one_device_step_matches_the_host_step() {
-    let gpu = match splat_cuda::Gpu::new() {
-        Ok(g) => Arc::new(g),
-        Err(e) => {
-            println!("skipping the device trainer parity test: {e}");
-            return;
+fn gpu(what: &str) -> Option<Arc<splat_cuda::Gpu>> {
+    match splat_cuda::Gpu::new() {
+        Ok(g) => {
+            println!("device: {}", g.describe());
+            Some(Arc::new(g))
         }
-    };
-    println!("device: {}", gpu.describe());
+        Err(e) => {
+            println!("skipping {what}: {e}");
+            None
+        }
+    }
+}
+
+/// The small synthetic street with priors and its initial state.
+struct Street {
+    _dir: tempfile::TempDir,
+    scene: scene::Scene,
+    views: Vec<recon::data::View>,
+    extent: f64,
+    state0: recon::checkpoint::TrainState,
+}
+
+fn street(cfg: &TrainConfig) -> Street {
     let dir = tempfile::tempdir().unwrap();
     let scene_dir = dir.path().join("scene");
     let sc = synth::SynthConfig { frames: 8, cameras: 2, width: 160, height: 96, seed: 5, ..Default::default() };
     synth::synthesize(&sc, &scene_dir, &mut |_, _| {}).expect("synthetic scene");
-    let cfg = cfg();
     let none = |_: &recon::data::View| Ok(None);
-    let (scene, mut views) = recon::session::prepare(&scene_dir, &cfg, &none).unwrap();
+    let (scene, mut views) = recon::session::prepare(&scene_dir, cfg, &none).unwrap();
     add_priors(&mut views, 11);
     let extent = recon::init::scene_extent(&views);
     let (model, _) =
         recon::init::initialise(&scene_dir, &scene, &views, &cfg.init, cfg.sh_degree, cfg.sky_res, cfg.seed).unwrap();
     assert!(!model.actors.is_empty(), "the synthetic street has actors");
     let state0 = Trainer::<Cuda>::fresh_state(model);
+    Street { _dir: dir, scene, views, extent, state0 }
+}
+
+#[test]
+fn one_device_step_matches_the_host_step() {
+    let Some(gpu) = gpu("the device trainer parity test") else { return };
+    let cfg = cfg();
+    let Street { scene, views, extent, state0, .. } = street(&cfg);
     let mut worst_grad = 0.0f64;
     // Iterations whose next one runs no density control (40 iterations: opacity resets at every
     // fourth): density control re-uploads the model and its gradient buffers start from zero.
@@ -210,4 +230,88 @@ fn one_device_step_matches_the_host_step() {
         println!("iteration {it}: gradients, statistics and Adam agree");
     }
     println!("worst gradient max rel difference: {worst_grad:.3e}");
+}
+
+/// Rounds every value to f32 (what the device holds), so both sides decide on the same numbers.
+fn to_f32(g: &mut Gaussians) {
+    let r = |v: &mut f64| *v = *v as f32 as f64;
+    g.means.iter_mut().flatten().for_each(r);
+    g.log_scales.iter_mut().flatten().for_each(r);
+    g.rotations.iter_mut().flatten().for_each(r);
+    g.opacity_logits.iter_mut().for_each(r);
+    g.sh.iter_mut().for_each(r);
+}
+
+/// Density control on the device (`recon::device`'s plan, layout and copy kernels) against the
+/// host's on the same state: random statistics around the threshold, random opacities around the
+/// pruning cut, random moments, the screen-size rule on; a step that clones, splits and prunes,
+/// then an opacity reset. Counts equal; every parameter and moment row equal (split children's
+/// means and scales to f32 rounding of the f64 sample).
+#[test]
+fn device_density_control_matches_the_host() {
+    let Some(gpu) = gpu("the device density control parity test") else { return };
+    let mut cfg = cfg();
+    cfg.densify.interval = 5;
+    cfg.densify.max_screen_size = 6.0;
+    let Street { scene, views, extent, mut state0, .. } = street(&cfg);
+    let (_, until, reset) = cfg.densify_schedule();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let st = &mut state0;
+    for (k, g) in st.model.sets_mut().enumerate() {
+        g.opacity_logits.iter_mut().for_each(|o| *o = rng.random_range(-7.0..2.0));
+        g.log_scales.iter_mut().flatten().for_each(|v| *v += rng.random_range(-1.0..1.5));
+        to_f32(g);
+        let n = g.len();
+        let s = &mut st.stats[k];
+        s.seen = (0..n).map(|_| rng.random_range(0..4)).collect();
+        s.grad_sum = s.seen.iter().map(|&c| (c as f64 * rng.random_range(0.0..4e-4)) as f32 as f64).collect();
+        s.max_radius = (0..n).map(|_| rng.random_range(0.0f32..10.0) as f64).collect();
+    }
+    for set in st.adam.m.iter_mut().chain(st.adam.v.iter_mut()) {
+        set.means.iter_mut().flatten().for_each(|v| *v = rng.random_range(0.0f32..1.0) as f64);
+        set.sh.iter_mut().for_each(|v| *v = rng.random_range(0.0f32..1.0) as f64);
+        set.opacity_logits.iter_mut().for_each(|v| *v = rng.random_range(0.0f32..1.0) as f64);
+    }
+    let densify_at = (reset + 1..until).find(|n| n % cfg.densify.interval == 0 && n % reset != 0).unwrap();
+    let reset_at = (densify_at + 1..until).find(|n| n % reset == 0 && n % cfg.densify.interval != 0).unwrap();
+    let mut host_backend = Cuda::new().unwrap();
+    host_backend.host_training = true;
+    let mut host = Trainer::new(&scene, &views, cfg.clone(), host_backend, state0.clone(), extent);
+    let mut dev = DeviceTrainer::new(&scene, &views, cfg.clone(), gpu, state0.clone(), extent).unwrap();
+    for n in [densify_at, reset_at] {
+        let hc = host.density_control(n);
+        let dc = dev.density_control(n).unwrap();
+        println!("after iteration {n}: host {hc:?}, device {dc:?}, rows {}", host.state.model.gaussian_count());
+        assert_eq!(hc, dc, "after iteration {n}: counts");
+        if n == densify_at {
+            let c = hc.expect("density control ran");
+            assert!(c.cloned > 0 && c.split > 0 && c.pruned > 0, "the step clones, splits and prunes: {c:?}");
+        }
+        let d = dev.sync_host().unwrap().clone();
+        let h = &host.state;
+        let pairs = h
+            .model
+            .sets()
+            .zip(d.model.sets())
+            .chain(h.adam.m.iter().zip(&d.adam.m))
+            .chain(h.adam.v.iter().zip(&d.adam.v));
+        for (k, (hg, dg)) in pairs.enumerate() {
+            assert_eq!(hg.len(), dg.len(), "after iteration {n}: array set {k}: rows");
+            for ((name, hv), (_, dv)) in arrays(hg).iter().zip(arrays(dg).iter()) {
+                for j in 0..hv.len() {
+                    // Copies are exact; split samples and the reset's cap are f32 roundings of f64.
+                    let tol = 2e-6 * hv[j].abs().max(1.0);
+                    assert!(
+                        (hv[j] - dv[j]).abs() <= tol,
+                        "after iteration {n}: array set {k} {name}[{j}]: host {} device {}",
+                        hv[j],
+                        dv[j]
+                    );
+                }
+            }
+        }
+        for (k, (hs, ds)) in h.stats.iter().zip(&d.stats).enumerate() {
+            assert_eq!(hs, ds, "after iteration {n}: set {k}: statistics are cleared to the new row count");
+        }
+    }
 }

@@ -24,6 +24,8 @@ pub const MAX_FEATURES: usize = 16;
 /// The kernels of one compiled module.
 pub(crate) struct Kernels {
     pub project: CudaFunction,
+    pub depth_keys: CudaFunction,
+    pub gather_counts: CudaFunction,
     pub emit_keys: CudaFunction,
     pub tile_ranges: CudaFunction,
     pub raster_forward: CudaFunction,
@@ -103,6 +105,8 @@ impl Gpu {
         let f = |name: &str| module.load_function(name);
         let k = Arc::new(Kernels {
             project: f("project_kernel")?,
+            depth_keys: f("depth_keys")?,
+            gather_counts: f("gather_counts")?,
             emit_keys: f("emit_keys")?,
             tile_ranges: f("tile_ranges")?,
             raster_forward: f("raster_forward")?,
@@ -117,6 +121,17 @@ impl Gpu {
         map.insert(nf, k.clone());
         Ok(k)
     }
+}
+
+/// Compiles `src` (with the rasterizer's options, no feature channels) for `arch` without a
+/// GPU: where the NVRTC library is present, a kernel source's compile errors show on any machine
+/// (`Ok(false)`: no NVRTC here, nothing checked).
+pub fn check_source(src: &str, arch: &str) -> Result<bool, CudaError> {
+    // SAFETY: only tries to open the shared library by name.
+    if !unsafe { nvrtc_sys::is_culib_present() } {
+        return Ok(false);
+    }
+    compile(src, arch, 0).map(|_| true)
 }
 
 /// NVRTC: CUDA C source to a CUBIN for `arch` (e.g. "sm_90").
@@ -152,4 +167,25 @@ pub(crate) fn compile(src: &str, arch: &str, nf: usize) -> Result<Vec<u8>, CudaE
     // SAFETY: created above, not destroyed before.
     let _ = unsafe { nvrtc::destroy_program(prog) };
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rasterizer's kernels compile for Hopper with every feature-channel count the trainer
+    /// uses, where the NVRTC library is present (no GPU needed).
+    #[test]
+    fn kernels_compile_where_nvrtc_is_present() {
+        // SAFETY: only tries to open the shared library by name.
+        if !unsafe { nvrtc_sys::is_culib_present() } {
+            println!("skipped: no NVRTC library on this machine (LD_LIBRARY_PATH)");
+            return;
+        }
+        for nf in [0, 1, 3, MAX_FEATURES] {
+            if let Err(e) = compile(&SOURCE.concat(), "sm_90", nf) {
+                panic!("{nf} feature channels: {e}");
+            }
+        }
+    }
 }

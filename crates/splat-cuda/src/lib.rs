@@ -15,11 +15,12 @@ mod host;
 mod inspect;
 mod pipeline;
 mod resident;
+mod sort;
 mod state;
 
 /// The CUDA bindings this crate is built on, for callers that write their own kernels.
 pub use cudarc;
-pub use device::Gpu;
+pub use device::{check_source, Gpu};
 pub use inspect::{Decisions, DeviceProj};
 pub use resident::{GradientsOut, ImageIo, WorldInputs, PROJ_EXTENT, PROJ_FLOATS};
 pub use state::{grow, Session};

@@ -1,13 +1,13 @@
-//! The kernel launches. Forward: project every Gaussian and count its tiles, exclusive-scan the
-//! counts, emit one `(tile << 32 | depth bits, index)` pair per tile overlap, radix-sort them
-//! (only the bits the tile count needs), find each tile's range, rasterise. Backward: zero the
-//! screen-space accumulators, rasterise back to front (warp-reduced atomics per Gaussian), then
-//! the per-Gaussian chain rule. The one host round trip is the intersection count.
+//! The kernel launches. Forward: project every Gaussian and count its tiles; order the Gaussians
+//! by depth and scan their counts in that order (`sort`); emit one `(tile << 32 | depth bits,
+//! index)` pair per tile overlap, depth-ordered; sort the pairs by their tile bits (`sort`); find
+//! each tile's range; rasterise. Backward: zero the screen-space accumulators, rasterise back to
+//! front (warp-reduced atomics per Gaussian), then the per-Gaussian chain rule. The one host round trip is the intersection count.
 
-use crate::device::{Gpu, Kernels};
+use crate::device::Gpu;
 use crate::state::{grow, Buffers, Shape, G2, PROJ};
 use crate::CudaError;
-use cudarc::driver::{CudaSlice, DeviceRepr, LaunchConfig, PushKernelArg};
+use cudarc::driver::{DeviceRepr, LaunchConfig, PushKernelArg};
 use splat::render::{RenderOptions, TILE};
 use splat::Camera;
 
@@ -81,95 +81,11 @@ fn blocks(n: usize, per: usize) -> u32 {
     n.div_ceil(per).max(1) as u32
 }
 
-fn linear(n: usize) -> LaunchConfig {
+pub(crate) fn linear(n: usize) -> LaunchConfig {
     LaunchConfig { grid_dim: (blocks(n, 256), 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
 }
 
-const SCAN_BLOCK: usize = 1024;
-const SORT_CHUNK: usize = 256 * 16;
-
 impl Gpu {
-    /// Exclusive scan of `n` values of `input` into `out` (recursive over block totals).
-    fn scan(
-        &self,
-        k: &Kernels,
-        input: &CudaSlice<u32>,
-        out: &mut CudaSlice<u32>,
-        n: usize,
-        sums: &mut Vec<CudaSlice<u32>>,
-        level: usize,
-    ) -> Result<(), CudaError> {
-        let s = &self.stream;
-        let nb = n.div_ceil(SCAN_BLOCK).max(1);
-        if sums.len() <= level {
-            sums.push(s.alloc_zeros(1)?);
-        }
-        grow(s, &mut sums[level], nb)?;
-        let cfg = LaunchConfig { grid_dim: (nb as u32, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 };
-        let n32 = n as u32;
-        // SAFETY: buffers hold n (input, out) and nb (sums) values, as the kernel reads and writes.
-        unsafe {
-            s.launch_builder(&k.scan_blocks).arg(&n32).arg(input).arg(&mut *out).arg(&mut sums[level]).launch(cfg)
-        }?;
-        if nb > 1 {
-            let mut block_sums = std::mem::replace(&mut sums[level], s.alloc_zeros(1)?);
-            let mut scanned = s.alloc_zeros::<u32>(nb)?;
-            self.scan(k, &block_sums, &mut scanned, nb, sums, level + 1)?;
-            // SAFETY: out holds n values; scanned holds one per block.
-            unsafe { s.launch_builder(&k.scan_add).arg(&n32).arg(&mut *out).arg(&scanned).launch(linear(n)) }?;
-            std::mem::swap(&mut sums[level], &mut block_sums);
-        }
-        Ok(())
-    }
-
-    /// Stable LSD radix sort of `m` pairs in `keys[0]`/`vals[0]` over bits `0..bits`; returns
-    /// which of the two buffers holds the result.
-    fn sort(&self, k: &Kernels, b: &mut Buffers, m: usize, bits: u32) -> Result<usize, CudaError> {
-        let s = &self.stream;
-        let nb = m.div_ceil(SORT_CHUNK).max(1);
-        grow(s, &mut b.hist, 256 * nb)?;
-        grow(s, &mut b.hist_scan, 256 * nb)?;
-        let (m32, nb32) = (m as u32, nb as u32);
-        let cfg = LaunchConfig { grid_dim: (nb32, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 };
-        let mut cur = 0;
-        let mut shift = 0u32;
-        while shift < bits {
-            let sh = shift as i32;
-            // SAFETY: keys hold m values, hist 256 * nb.
-            unsafe {
-                s.launch_builder(&k.radix_hist)
-                    .arg(&m32)
-                    .arg(&b.keys[cur])
-                    .arg(&sh)
-                    .arg(&nb32)
-                    .arg(&mut b.hist)
-                    .launch(cfg)
-            }?;
-            let (hist, mut hist_scan) = (&b.hist, std::mem::replace(&mut b.hist_scan, s.alloc_zeros(1)?));
-            self.scan(k, hist, &mut hist_scan, 256 * nb, &mut b.scan_sums, 0)?;
-            let [k0, k1] = &mut b.keys;
-            let [v0, v1] = &mut b.vals;
-            let (kin, kout, vin, vout) = if cur == 0 { (&*k0, k1, &*v0, v1) } else { (&*k1, k0, &*v1, v0) };
-            // SAFETY: both key and value buffers hold m values; offsets 256 * nb.
-            unsafe {
-                s.launch_builder(&k.radix_scatter)
-                    .arg(&m32)
-                    .arg(kin)
-                    .arg(vin)
-                    .arg(kout)
-                    .arg(vout)
-                    .arg(&sh)
-                    .arg(&nb32)
-                    .arg(&hist_scan)
-                    .launch(cfg)
-            }?;
-            b.hist_scan = hist_scan;
-            cur ^= 1;
-            shift += 8;
-        }
-        Ok(cur)
-    }
-
     /// The forward pass over the model already in `b` (`sh.n` Gaussians).
     pub(crate) fn forward(
         &self,
@@ -208,16 +124,14 @@ impl Gpu {
                 .arg(&mut b.rects)
                 .launch(linear(n))
         }?;
-        let mut offsets = std::mem::replace(&mut b.offsets, s.alloc_zeros(1)?);
-        self.scan(&k, &b.counts, &mut offsets, n, &mut b.scan_sums, 0)?;
-        b.offsets = offsets;
+        self.depth_order(&k, b, n)?;
         let nu = n as u32;
         // SAFETY: total holds one value; offsets and counts n.
         unsafe {
             s.launch_builder(&k.scan_total)
                 .arg(&nu)
                 .arg(&b.offsets)
-                .arg(&b.counts)
+                .arg(&b.sorted_counts)
                 .arg(&mut b.total)
                 .launch(LaunchConfig::for_num_elems(1))
         }?;
@@ -235,7 +149,8 @@ impl Gpu {
             s.launch_builder(&k.emit_keys)
                 .arg(&n32)
                 .arg(&b.proj)
-                .arg(&b.counts)
+                .arg(&b.order[b.order_at])
+                .arg(&b.sorted_counts)
                 .arg(&b.offsets)
                 .arg(&b.rects)
                 .arg(&tx)
@@ -244,7 +159,12 @@ impl Gpu {
                 .launch(linear(n))
         }?;
         let tile_bits = usize::BITS - (tiles.max(2) - 1).leading_zeros();
-        sh.sorted = if m > 0 { self.sort(&k, b, m, 32 + tile_bits)? } else { 0 };
+        sh.sorted = if m > 0 {
+            let Buffers { keys, vals, hist, hist_scan, scan_sums, .. } = b;
+            self.sort(&k, keys, vals, hist, hist_scan, scan_sums, m, 32..32 + tile_bits)?
+        } else {
+            0
+        };
         grow(s, &mut b.ranges, 2 * tiles)?;
         s.memset_zeros(&mut b.ranges)?;
         let m32 = m as u32;

@@ -41,6 +41,12 @@ pub(crate) struct Buffers {
     pub offsets: CudaSlice<u32>,
     pub rects: CudaSlice<i32>,
     pub total: CudaSlice<u32>,
+    // The depth sort of the Gaussians (N, ping-pong), its result (`order`, which of the two) and
+    // the tile counts in that order.
+    pub depth_keys: [CudaSlice<u64>; 2],
+    pub order: [CudaSlice<u32>; 2],
+    pub order_at: usize,
+    pub sorted_counts: CudaSlice<u32>,
     // Keys and values, twice for the sort's ping-pong (M), and its histograms.
     pub keys: [CudaSlice<u64>; 2],
     pub vals: [CudaSlice<u32>; 2],
@@ -91,6 +97,10 @@ impl Buffers {
             offsets: u()?,
             rects: s.alloc_zeros(1)?,
             total: u()?,
+            depth_keys: [s.alloc_zeros(1)?, s.alloc_zeros(1)?],
+            order: [u()?, u()?],
+            order_at: 0,
+            sorted_counts: u()?,
             keys: [s.alloc_zeros(1)?, s.alloc_zeros(1)?],
             vals: [u()?, u()?],
             hist: u()?,

@@ -181,7 +181,17 @@ fn rounded(g: &Gaussians) -> Gaussians {
 }
 
 /// Renders and backpropagates `g` on both, with random upstream weights on every channel.
-fn compare(gpu: &Gpu, g: &Gaussians, cam: &Camera, nf: usize, opts: &RenderOptions, r: &mut XorShift) -> Outcome {
+/// One scene on both sides; `geometry`: whether the upstream gradients include depth and normals
+/// (false: an RGB, alpha and feature loss, the backward's path that skips those terms).
+fn compare(
+    gpu: &Gpu,
+    g: &Gaussians,
+    cam: &Camera,
+    nf: usize,
+    opts: &RenderOptions,
+    geometry: bool,
+    r: &mut XorShift,
+) -> Outcome {
     let g = &rounded(g);
     let fv: Vec<f64> = (0..g.len() * nf).map(|_| r.range(-1.0, 1.0) as f32 as f64).collect();
     let f = Features { values: &fv, channels: nf };
@@ -198,6 +208,10 @@ fn compare(gpu: &Gpu, g: &Gaussians, cam: &Camera, nf: usize, opts: &RenderOptio
     let mut alpha: Vec<f64> = (0..p).map(|_| r.range(-1.0, 1.0)).collect();
     let mut depth: Vec<f64> = (0..p).map(|_| r.range(-0.2, 0.2)).collect();
     let mut feats: Vec<f64> = (0..p * nf).map(|_| r.range(-1.0, 1.0)).collect();
+    if !geometry {
+        normal.fill([0.0; 3]);
+        depth.fill(0.0);
+    }
     for i in (0..p).filter(|i| flags.pixel[*i]) {
         (rgb[i], normal[i], alpha[i], depth[i]) = ([0.0; 3], [0.0; 3], 0.0, 0.0);
         feats[i * nf..(i + 1) * nf].fill(0.0);
@@ -283,10 +297,11 @@ fn random_scenes_match_the_cpu_reference() {
             let n = 20_000 + (r.uniform() * 30_000.0) as usize;
             (random_gaussians(n, &cam, degree, r.0), cam, "random_gaussians")
         };
-        let o = compare(&gpu, &g, &cam, nf, &opts, &mut r);
+        let geometry = case % 4 != 3;
+        let o = compare(&gpu, &g, &cam, nf, &opts, geometry, &mut r);
         let (px, fl) = (cam.width as usize * cam.height as usize, &o.flags);
         println!(
-            "case {case:2} ({what}, {} Gaussians, {}x{}, degree {degree}, aa {aa}, world normals {world}, {nf} features)\n  \
+            "case {case:2} ({what}, {} Gaussians, {}x{}, degree {degree}, aa {aa}, world normals {world}, {nf} features, depth/normal gradients {geometry})\n  \
              all values: forward max abs {:.3e} ({} of {} over 1e-4)\n  \
              flagged near an f32/f64 decision: {} of {px} pixels (order {}, cutoff {}, clamp {}, stop {}, normal {} from {} Gaussians); {} of them differ by > 1e-4\n  \
              unflagged: forward max abs {:.3e} ({}); gradient max rel {:.3e} ({}); projection: {} culled by one side only, mean {:.2e} px, depth {:.2e} rel",
@@ -336,7 +351,7 @@ fn degenerate_inputs_match_the_cpu_reference() {
     let cam = Camera { far: 100.0, ..Camera::at_origin(48, 32, 0.9 * 48.0) };
     for aa in [false, true] {
         let opts = RenderOptions { antialiased: aa, ..Default::default() };
-        let o = compare(&gpu, &g, &cam, 2, &opts, &mut r);
+        let o = compare(&gpu, &g, &cam, 2, &opts, true, &mut r);
         println!(
             "degenerate (aa {aa}): forward max abs {:.3e}, gradient max rel {:.3e} ({})",
             o.forward, o.grad, o.worst
@@ -352,7 +367,7 @@ fn degenerate_inputs_match_the_cpu_reference() {
         sh: vec![],
     };
     let opts = RenderOptions { background: [1.0, 0.0, 0.0], ..Default::default() };
-    let o = compare(&gpu, &empty, &cam, 0, &opts, &mut r);
+    let o = compare(&gpu, &empty, &cam, 0, &opts, true, &mut r);
     println!("empty scene: forward max abs {:.3e}", o.forward);
     assert!(o.forward == 0.0 && o.grad == 0.0);
     // A session reused for a smaller scene at another size equals a fresh one.

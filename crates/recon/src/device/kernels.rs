@@ -1,4 +1,4 @@
-//! The trainer's kernels (`kernels.cu`), compiled once per GPU with the rasterizer's NVRTC
+//! The trainer's kernels (`kernels.cu`, and `densify.cu` for density control), compiled once per GPU with the rasterizer's NVRTC
 //! settings, and the plain-data arguments they take (`#[repr(C)]` twins of the CUDA structs).
 
 use crate::ReconError;
@@ -21,12 +21,18 @@ pub(crate) struct Kernels {
     pub geo_terms: CudaFunction,
     pub normal_finish: CudaFunction,
     pub adam: CudaFunction,
+    pub densify_plan: CudaFunction,
+    pub densify_copy: CudaFunction,
+    pub densify_split: CudaFunction,
+    pub opacity_cap: CudaFunction,
 }
 
 impl Kernels {
     pub fn compile(gpu: &Gpu) -> Result<Kernels, ReconError> {
         let m = gpu.compile_module(include_str!("kernels.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
         let f = |name: &str| m.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
+        let dm = gpu.compile_module(include_str!("densify.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
+        let fd = |name: &str| dm.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
         Ok(Kernels {
             compose_segment: f("compose_segment")?,
             scatter_segment: f("scatter_segment")?,
@@ -43,6 +49,10 @@ impl Kernels {
             geo_terms: f("geo_terms")?,
             normal_finish: f("normal_finish")?,
             adam: f("adam")?,
+            densify_plan: fd("densify_plan")?,
+            densify_copy: fd("densify_copy")?,
+            densify_split: fd("densify_split")?,
+            opacity_cap: fd("opacity_cap")?,
         })
     }
 }
@@ -124,5 +134,24 @@ impl Win {
     pub fn ssim() -> Win {
         let w = crate::ssim::window();
         Win { w: std::array::from_fn(|k| w[k] as f32) }
+    }
+}
+
+// SAFETY: `densify_rule::Rule` is plain #[repr(C)] data matching densify.cu's `Rule`.
+unsafe impl DeviceRepr for crate::densify_rule::Rule {}
+
+#[cfg(test)]
+mod tests {
+    /// The trainer's kernel sources compile for Hopper where the NVRTC library is present (no GPU
+    /// needed), so a compile error shows before a device run.
+    #[test]
+    fn trainer_kernels_compile_where_nvrtc_is_present() {
+        for (name, src) in [("kernels.cu", include_str!("kernels.cu")), ("densify.cu", include_str!("densify.cu"))] {
+            match splat_cuda::check_source(src, "sm_90") {
+                Ok(true) => {}
+                Ok(false) => return println!("skipped: no NVRTC library on this machine (LD_LIBRARY_PATH)"),
+                Err(e) => panic!("{name}: {e}"),
+            }
+        }
     }
 }

@@ -5,14 +5,15 @@
 //! backward pass, takes the gradients back to the models with the flattening term and the
 //! statistics, and steps Adam. What comes back each iteration: the intersection count (the
 //! rasterizer's), the loss sums and the drawn count (eight floats, two integers). Density control
-//! (every `densify.interval` iterations while it runs) brings the model to the host, runs the
-//! same `densify_and_prune` as the CPU trainer and sends it back.
+//! (every `densify.interval` iterations while it runs) stays on the device too (`densify`): one
+//! byte per Gaussian comes back, and positions go out.
 //!
 //! It follows `Trainer::step` (the same view order, SH schedule, loss, learning rates and
 //! density control) in f32; float atomics in the backward pass make runs repeatable only to
 //! rounding, not bit for bit.
 
 mod compose;
+mod densify;
 mod kernels;
 mod loss;
 mod model;
@@ -22,7 +23,7 @@ use crate::checkpoint::TrainState;
 use crate::config::TrainConfig;
 use crate::data::View;
 use crate::optim::{means_lr, BETA1, BETA2};
-use crate::train::{density_control, density_due, train_views, view_for, StepReport};
+use crate::train::{density_step, train_views, view_for, StepReport};
 use crate::ReconError;
 use kernels::{linear, Kernels};
 use model::DeviceModel;
@@ -52,8 +53,8 @@ pub struct DeviceTrainer<'a> {
     targets: Vec<Option<ViewTargets>>,
     scratch: loss::Scratch,
     train_views: Vec<usize>,
-    /// Seconds spent in density control on the host (copies both ways included) and how often.
-    host_density: (f64, usize),
+    /// Seconds spent in density control (clone, split, prune) and how often.
+    density_time: (f64, usize),
 }
 
 fn dev(e: DriverError) -> ReconError {
@@ -96,7 +97,7 @@ impl<'a> DeviceTrainer<'a> {
             dm,
             targets,
             scratch,
-            host_density: (0.0, 0),
+            density_time: (0.0, 0),
         })
     }
 
@@ -104,9 +105,9 @@ impl<'a> DeviceTrainer<'a> {
         self.state.next_iteration
     }
 
-    /// Seconds spent so far in density control on the host (both copies included), and how many times.
-    pub fn host_density_seconds(&self) -> (f64, usize) {
-        self.host_density
+    /// Seconds spent so far in density control (clone, split, prune), and how many times.
+    pub fn density_seconds(&self) -> (f64, usize) {
+        self.density_time
     }
 
     /// Brings the device's model, moments and statistics to the host copy and returns it.
@@ -170,19 +171,28 @@ impl<'a> DeviceTrainer<'a> {
         self.adam(mean_lr).map_err(dev)?;
         self.host_current = false;
         let n = it + 1;
-        let densified = if density_due(&self.cfg, n) {
-            let t0 = std::time::Instant::now();
-            self.sync_host()?;
-            let c = density_control(&mut self.state, &self.cfg, self.extent, n);
-            self.dm = DeviceModel::upload(&s, &self.state)?;
-            self.host_density.0 += t0.elapsed().as_secs_f64();
-            self.host_density.1 += 1;
-            c
-        } else {
-            None
-        };
+        let densified = self.density_control(n)?;
         self.state.next_iteration = n;
         Ok(StepReport { loss: parts, psnr: crate::metrics::psnr_from_mse(mse), gaussians: self.dm.rows(), densified })
+    }
+
+    /// Density control after 1-based iteration `n` (the 3DGS schedule; nothing when it is not due).
+    pub fn density_control(&mut self, n: usize) -> Result<Option<crate::densify::Counts>, ReconError> {
+        let boxes = self.state.model.actors.iter().map(|a| a.size_lwh);
+        let ds = density_step(&self.cfg, self.extent, n, self.dm.rows(), boxes);
+        if ds.rules.is_none() && !ds.reset {
+            return Ok(None);
+        }
+        let s = self.gpu.stream().clone();
+        let t0 = std::time::Instant::now();
+        let c = densify::control(&self.k, &s, &mut self.dm, &ds).map_err(dev)?;
+        self.host_current = false;
+        if ds.rules.is_some() {
+            s.synchronize().map_err(dev)?;
+            self.density_time.0 += t0.elapsed().as_secs_f64();
+            self.density_time.1 += 1;
+        }
+        Ok(c)
     }
 
     /// One Adam step on every parameter and the sky (recon::optim::adam_step's rates).

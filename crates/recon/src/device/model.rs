@@ -39,6 +39,27 @@ fn get(s: &Arc<CudaStream>, b: &CudaSlice<f32>, n: usize) -> Result<Vec<f32>, Dr
 }
 
 impl Params {
+    /// `rows` zero rows with `kc` SH values each.
+    pub fn zeros(s: &Arc<CudaStream>, rows: usize, kc: usize) -> Result<Params, DriverError> {
+        let z = |w: usize| s.alloc_zeros::<f32>((w * rows).max(1));
+        Ok(Params { means: z(3)?, log_scales: z(3)?, rotations: z(4)?, logits: z(1)?, sh: z(kc)? })
+    }
+
+    /// The arrays with their values per row, in a fixed order.
+    pub fn arrays_mut(&mut self, kc: usize) -> [(&mut CudaSlice<f32>, usize); 5] {
+        [
+            (&mut self.means, 3),
+            (&mut self.log_scales, 3),
+            (&mut self.rotations, 4),
+            (&mut self.logits, 1),
+            (&mut self.sh, kc),
+        ]
+    }
+
+    pub fn arrays(&self, kc: usize) -> [(&CudaSlice<f32>, usize); 5] {
+        [(&self.means, 3), (&self.log_scales, 3), (&self.rotations, 4), (&self.logits, 1), (&self.sh, kc)]
+    }
+
     fn upload(s: &Arc<CudaStream>, sets: &[&Gaussians]) -> Result<Params, DriverError> {
         let sets = sets.iter().copied();
         Ok(Params {

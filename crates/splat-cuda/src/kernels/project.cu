@@ -233,18 +233,38 @@ extern "C" __global__ void project_kernel(int n, const float* means, const float
     rects[i] = make_int4(x0, y0, x1, y1);
 }
 
-// Writes one (tile << 32 | depth bits, index) pair per tile a Gaussian overlaps, in index order.
-extern "C" __global__ void emit_keys(int n, const Proj* proj, const unsigned* counts, const unsigned* offsets,
-                                     const int4* rects, int tiles_x, unsigned long long* keys, unsigned* vals) {
+// The depth sort's pairs: every Gaussian's depth bits (positive floats order as their bits) and
+// its index; those that cover no tile sort last.
+extern "C" __global__ void depth_keys(int n, const Proj* proj, const unsigned* counts, unsigned long long* keys,
+                                      unsigned* vals) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= n || counts[i] == 0) return;
+    if (i >= n) return;
+    keys[i] = counts[i] == 0 ? 0xffffffffull : (unsigned long long)__float_as_uint(proj[i].depth);
+    vals[i] = (unsigned)i;
+}
+
+// The tile counts in depth order: out[j] = counts[order[j]].
+extern "C" __global__ void gather_counts(int n, const unsigned* order, const unsigned* counts, unsigned* out) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j < n) out[j] = counts[order[j]];
+}
+
+// Writes one (tile << 32 | depth bits, index) pair per tile a Gaussian overlaps, the Gaussians in
+// depth order (`order`, ties by index; `counts` and `offsets` in that order too), so that a
+// stable sort by tile alone leaves each tile's pairs sorted by depth, then index.
+extern "C" __global__ void emit_keys(int n, const Proj* proj, const unsigned* order, const unsigned* counts,
+                                     const unsigned* offsets, const int4* rects, int tiles_x, unsigned long long* keys,
+                                     unsigned* vals) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= n || counts[j] == 0) return;
+    unsigned i = order[j];
     int4 r = rects[i];
     unsigned long long depth = (unsigned long long)__float_as_uint(proj[i].depth);
-    unsigned o = offsets[i];
+    unsigned o = offsets[j];
     for (int y = r.y; y <= r.w; y++)
         for (int x = r.x; x <= r.z; x++) {
             keys[o] = ((unsigned long long)(y * tiles_x + x) << 32) | depth;
-            vals[o] = (unsigned)i;
+            vals[o] = i;
             o++;
         }
 }

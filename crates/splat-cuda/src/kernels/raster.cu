@@ -121,6 +121,9 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
     }
     float b_rgb[3] = {o.bg[0] * t_final, o.bg[1] * t_final, o.bg[2] * t_final}, b_n[3] = {0.0f, 0.0f, 0.0f},
           b_d = 0.0f;
+    // Whether any pixel of this warp has a depth or normal gradient: when none has (an RGB-only
+    // loss), their terms are exactly zero, so the warp neither computes nor reduces them.
+    bool geo = __any_sync(0xffffffffu, u_d != 0.0f || u_n[0] != 0.0f || u_n[1] != 0.0f || u_n[2] != 0.0f);
     if (tid == 0) max_last = 0;
     __syncthreads();
     atomicMax(&max_last, my_last);
@@ -153,23 +156,26 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
                 for (int c = 0; c < 3; c++) {
                     vc[c] = fmaxf(g.color[c], 0.0f);
                     if (g.color[c] > 0.0f) v[6 + c] = u_rgb[c] * w;
-                    v[10 + c] = u_n[c] * w;
                 }
-                v[9] = u_d * w;
-                float d_alpha = u_a * t_final * inv + u_d * (ti * g.depth - b_d * inv);
-                for (int c = 0; c < 3; c++)
-                    d_alpha += u_rgb[c] * (ti * vc[c] - b_rgb[c] * inv) + u_n[c] * (ti * g.normal[c] - b_n[c] * inv);
+                float d_alpha = u_a * t_final * inv;
+                for (int c = 0; c < 3; c++) d_alpha += u_rgb[c] * (ti * vc[c] - b_rgb[c] * inv);
+                if (geo) {
+                    v[9] = u_d * w;
+                    d_alpha += u_d * (ti * g.depth - b_d * inv);
+                    for (int c = 0; c < 3; c++) {
+                        v[10 + c] = u_n[c] * w;
+                        d_alpha += u_n[c] * (ti * g.normal[c] - b_n[c] * inv);
+                        b_n[c] += w * g.normal[c];
+                    }
+                    b_d += w * g.depth;
+                }
                 for (int c = 0; c < NF; c++) {
                     float fi = feats[(size_t)sid[j] * NF + c];
                     v[13 + c] = u_f[c] * w;
                     d_alpha += u_f[c] * (ti * fi - s_f[c] * inv);
                     s_f[c] += w * fi;
                 }
-                for (int c = 0; c < 3; c++) {
-                    b_rgb[c] += w * vc[c];
-                    b_n[c] += w * g.normal[c];
-                }
-                b_d += w * g.depth;
+                for (int c = 0; c < 3; c++) b_rgb[c] += w * vc[c];
                 if (!cl) {
                     v[5] = d_alpha * e;
                     float dp = d_alpha * alpha;
@@ -183,6 +189,7 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
                 T = ti;
             }
             for (int k = 0; k < G2N; k++) {
+                if (!geo && k >= 9 && k < 13) continue;
                 float s = v[k];
                 for (int off = 16; off > 0; off >>= 1) s += __shfl_down_sync(0xffffffffu, s, off);
                 if (lane == 0 && s != 0.0f) atomicAdd(&g2[(size_t)sid[j] * G2N + k], s);
