@@ -8,13 +8,12 @@
 //! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
 //! box are pruned, so a car's model cannot smear into the street it drives through.
 
-use crate::config::DensifyConfig;
-use crate::densify_rule::{row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};
+use crate::densify_rule::{finish_codes, row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};
 use crate::model::{empty, push_row, push_zeros};
 use crate::optim::AdamState;
 use splat::Gaussians;
 
-pub use crate::densify_rule::{finish_codes, Counts, Rule};
+pub use crate::densify_rule::{Counts, Rule};
 
 /// Per-set statistics between densification steps.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -57,7 +56,7 @@ impl Stats {
 }
 
 /// The codes of every row of a set (`densify_rule`), before `finish_codes`.
-pub fn plan(g: &Gaussians, stats: &Stats, rule: &Rule) -> Vec<u8> {
+fn plan(g: &Gaussians, stats: &Stats, rule: &Rule) -> Vec<u8> {
     if tracing::enabled!(tracing::Level::DEBUG) {
         let mut sorted: Vec<f64> = (0..g.len()).map(|i| stats.average(i)).collect();
         sorted.sort_by(f64::total_cmp);
@@ -80,7 +79,7 @@ pub fn plan(g: &Gaussians, stats: &Stats, rule: &Rule) -> Vec<u8> {
 /// Rebuilds a set from its finished codes: the kept rows in order, then every kept child in its
 /// parent's order (a clone, or the two split halves); moments follow their rows and children
 /// start at zero.
-pub fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u8], rule: &Rule) {
+fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u8], rule: &Rule) {
     let (mut og, mut om, mut ov) = (empty(g.sh_degree), empty(m.sh_degree), empty(v.sh_degree));
     for (i, code) in codes.iter().enumerate() {
         if code & KEEP != 0 {
@@ -108,30 +107,28 @@ pub fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u
     (*g, *m, *v) = (og, om, ov);
 }
 
-/// Clones, splits and prunes set `set` of the model (`g` with its moments `m`, `v`).
-#[allow(clippy::too_many_arguments)]
+/// Clones, splits and prunes one set (`g` with its moments `m`, `v`) by `rule`.
 pub fn densify_and_prune(
     g: &mut Gaussians,
     m: &mut Gaussians,
     v: &mut Gaussians,
     stats: &Stats,
-    cfg: &DensifyConfig,
-    extent: f64,
-    grow: bool,
-    prune_big: bool,
-    actor_box: Option<[f64; 3]>,
-    seed: u64,
+    rule: &Rule,
 ) -> Counts {
-    let rule = Rule::new(cfg, extent, grow, prune_big, actor_box, seed);
-    let mut codes = plan(g, stats, &rule);
+    let mut codes = plan(g, stats, rule);
     let counts = finish_codes(&mut codes);
-    apply(g, m, v, &codes, &rule);
+    apply(g, m, v, &codes, rule);
     counts
+}
+
+/// The opacity reset's cap as a logit: opacities above 0.01 come down to it.
+pub fn reset_logit_cap() -> f64 {
+    (0.01f64 / 0.99).ln()
 }
 
 /// Caps every opacity at 0.01 and clears the opacity moments of every set.
 pub fn reset_opacity(sets: &mut [&mut Gaussians], state: &mut AdamState) {
-    let cap = (0.01f64 / 0.99).ln();
+    let cap = reset_logit_cap();
     for g in sets.iter_mut() {
         g.opacity_logits.iter_mut().for_each(|o| *o = o.min(cap));
     }
@@ -143,6 +140,7 @@ pub fn reset_opacity(sets: &mut [&mut Gaussians], state: &mut AdamState) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::DensifyConfig;
     use crate::model::zeros_like;
 
     #[test]
@@ -163,7 +161,8 @@ mod tests {
         m.means[0] = [1.0; 3];
         let stats = Stats { grad_sum: vec![1.0, 1.0, 0.0, 0.0], seen: vec![1; 4], max_radius: vec![1.0; 4] };
         let cfg = DensifyConfig::default();
-        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &cfg, 10.0, true, false, None, 7);
+        let rule = Rule::new(&cfg, 10.0, true, false, None, 7);
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule);
         assert_eq!(c, Counts { cloned: 1, split: 1, pruned: 1 });
         // kept: 0 (clone source), 3, clone of 0, two halves of 1
         assert_eq!(g.len(), 5);
@@ -174,7 +173,8 @@ mod tests {
         assert!(g.validate().is_ok());
         // In a 1 m box, the split halves (scale 1.25) are too wide and are pruned.
         let stats = Stats { grad_sum: vec![0.0; 5], seen: vec![1; 5], max_radius: vec![1.0; 5] };
-        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &cfg, 10.0, true, false, Some([1.0; 3]), 7);
+        let rule = Rule::new(&cfg, 10.0, true, false, Some([1.0; 3]), 7);
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule);
         assert_eq!((c.pruned, g.len()), (2, 3));
     }
 }

@@ -10,7 +10,7 @@ use crate::checkpoint::TrainState;
 use crate::compose::{compose_into, reset_gradients, scatter_gradients, Composed, Layers};
 use crate::config::TrainConfig;
 use crate::data::View;
-use crate::densify::{apply, finish_codes, plan, reset_opacity, Counts, Rule, Stats};
+use crate::densify::{densify_and_prune, reset_opacity, Counts, Rule, Stats};
 use crate::loss::{view_loss, ChannelGrads, LossParts, Rendered};
 use crate::optim::{adam_step, means_lr, AdamState};
 use crate::sky::Sky;
@@ -245,9 +245,7 @@ pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent:
         let mut total = Counts::default();
         let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
         for (i, (g, rule)) in sets.into_iter().zip(&rules).enumerate() {
-            let mut codes = plan(g, &st.stats[i], rule);
-            total.add(finish_codes(&mut codes));
-            apply(g, &mut st.adam.m[i], &mut st.adam.v[i], &codes, rule);
+            total.add(densify_and_prune(g, &mut st.adam.m[i], &mut st.adam.v[i], &st.stats[i], rule));
         }
         for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
             s.grad_sum.clear();

@@ -26,7 +26,7 @@ pub(crate) fn control(
     };
     if step.reset {
         let n = dm.rows();
-        let cap = (0.01f64 / 0.99).ln() as f32;
+        let cap = crate::densify::reset_logit_cap() as f32;
         // SAFETY: logits holds n values.
         unsafe { s.launch_builder(&k.opacity_cap).arg(&n).arg(&cap).arg(&mut dm.p.logits).launch(linear(n))? };
         s.memset_zeros(&mut dm.m.logits)?;
