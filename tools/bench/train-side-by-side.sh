@@ -73,35 +73,39 @@ for n in $(echo "$iters" | tr ',' ' '); do
     --iters "$n" --out "$out/gsplat-$n.json" ${GSPLAT_ARGS:-}
 done
 
-# The table covers every count with both results in <out dir> (a run split over calls gets one table).
+# The table covers every count done so far in <out dir> (a run split over calls gets one table).
 python3 - "$out" <<'PY'
 import glob, json, os, re, sys
 out = sys.argv[1]
-iters = sorted(int(re.search(r"gsplat-(\d+)\.json$", f).group(1)) for f in glob.glob(f"{out}/gsplat-*.json"))
-iters = [n for n in iters if os.path.exists(f"{out}/ours-{n}-eval.json")]
+# Every count with our result; gsplat's row and the ratio where gsplat ran that count too (ONLY=ours
+# runs still get their rows).
+iters = sorted(int(re.search(r"ours-(\d+)-eval\.json$", f).group(1)) for f in glob.glob(f"{out}/ours-*-eval.json"))
 mem = lambda f: (lambda a: int(a[0]) - int(a[1]))(open(f).read().split())
 lines = ["| iterations | tool | train loop (s) | it/s | Gaussians | peak GPU memory, nvidia-smi minus idle (MiB) | held-out PSNR (dB) | held-out SSIM |",
          "|---|---|---|---|---|---|---|---|"]
-notes = None
+g = None
 for n in iters:
     m = json.load(open(f"{out}/ours-{n}/model.json"))
     e = json.load(open(f"{out}/ours-{n}-eval.json"))
     t0, t1 = (float(x) for x in open(f"{out}/ours-{n}.wall").read().split())
-    g = json.load(open(f"{out}/gsplat-{n}.json"))
-    notes = g["notes"]
-    r = g["results"][0]
     o = dict(s=m["train_seconds"], its=m["iterations_per_second"], n=m["background_gaussians"], mem=mem(f"{out}/ours-{n}.gpu-mem"),
              psnr=e["psnr"]["mean"], ssim=e["ssim"]["mean"])
+    lines.append(f"| {n} | carla-gs (whole command {t1 - t0:.1f} s) | {o['s']:.1f} | {o['its']:.1f} | {o['n']:,} | {o['mem']:,} | {o['psnr']:.2f} | {o['ssim']:.4f} |")
+    if not os.path.exists(f"{out}/gsplat-{n}.json"):
+        lines.append(f"| {n} | gsplat | not run | | | | | |")
+        continue
+    g = json.load(open(f"{out}/gsplat-{n}.json"))
+    r = g["results"][0]
     q = dict(s=r["train_seconds"], its=r["iterations_per_second"], n=r["gaussians"], mem=mem(f"{out}/gsplat-{n}.gpu-mem"),
              psnr=r["held_out"]["psnr"], ssim=r["held_out"]["ssim"])
-    lines.append(f"| {n} | carla-gs (whole command {t1 - t0:.1f} s) | {o['s']:.1f} | {o['its']:.1f} | {o['n']:,} | {o['mem']:,} | {o['psnr']:.2f} | {o['ssim']:.4f} |")
     lines.append(f"| {n} | gsplat {g['gsplat']} (torch max allocated {r['peak_memory_bytes'] / 2**20:,.0f} MiB) | {q['s']:.1f} | {q['its']:.1f} | {q['n']:,} | {q['mem']:,} | {q['psnr']:.2f} | {q['ssim']:.4f} |")
     lines.append(f"| {n} | ratio ours/gsplat | {o['s'] / q['s']:.2f} | {o['its'] / q['its']:.2f} | {o['n'] / q['n']:.2f} | {o['mem'] / max(q['mem'], 1):.2f} | "
                  f"{o['psnr'] - q['psnr']:+.2f} dB | {o['ssim'] - q['ssim']:+.4f} |")
-lines += ["", f"Fox at scale {g['scale']} ({g['size'][0]}x{g['size'][1]}), {g['train_views']} training / {g['held_out_views']} held-out views, "
-          f"same {g['gaussians_init']:,} initial Gaussians (carla-gs random start). Held-out PSNR/SSIM: ours with its learned sky, "
-          "gsplat on black. Peak memory: nvidia-smi memory.used max minus the idle reading before the run (context and allocator reserve included).",
-          "", "gsplat side notes:"] + [f"- {x}" for x in notes]
+if g is not None:
+    lines += ["", f"Fox at scale {g['scale']} ({g['size'][0]}x{g['size'][1]}), {g['train_views']} training / {g['held_out_views']} held-out views, "
+              f"same {g['gaussians_init']:,} initial Gaussians (carla-gs random start). Held-out PSNR/SSIM: ours with its learned sky, "
+              "gsplat on black. Peak memory: nvidia-smi memory.used max minus the idle reading before the run (context and allocator reserve included).",
+              "", "gsplat side notes:"] + [f"- {x}" for x in g["notes"]]
 open(f"{out}/side-by-side-train.md", "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))
 PY

@@ -1,10 +1,13 @@
-//! Composing on the device (recon::compose, in f32): the view's segments (the background, then
-//! every actor alive at the view's time with its `world_from_box`) are built on the host (a few
-//! poses and 16 x 16 SH rotations), then one kernel per segment writes the world-frame model the
-//! rasterizer draws, and after the backward pass one kernel per segment takes the world
-//! gradients back to the models' rows, adding the flattening term and the density statistics.
+//! Composing on the device (recon::compose, in f32): the view's runs of rows (the background,
+//! then every actor alive at the view's time with its `world_from_box`) are built on the host (a
+//! few poses and 16 x 16 SH rotations) and copied to the device as one small table; then one
+//! launch over every world row writes the world-frame model the rasterizer draws, and after the
+//! backward pass one launch takes the world gradients back to the models' rows, adding the
+//! flattening term and the density statistics. One launch for all runs, with the transforms read
+//! from the table, because a launch per actor (with its 1 KB transform as a kernel argument,
+//! indexed at run time) cost about 70 us whatever the actor's size.
 
-use super::kernels::{linear, Kernels, Xf};
+use super::kernels::{linear, Kernels, Seg, Xf};
 use super::model::DeviceModel;
 use crate::compose::{actor_pose, yaw_rotation};
 use crate::model::SceneModel;
@@ -12,59 +15,77 @@ use crate::sh_rotate::ShRotation;
 use scene::Scene;
 use splat::sh::sh_coeffs;
 use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, PushKernelArg};
-use splat_cuda::{GradientsOut, WorldInputs, PROJ_EXTENT, PROJ_FLOATS};
+use splat_cuda::{grow, CudaError, GradientsOut, WorldInputs, PROJ_EXTENT, PROJ_FLOATS};
 use std::sync::Arc;
 
-/// A run of world rows: model rows `src0..src0 + n` drawn at world rows `dst0..`.
-pub(crate) struct Segment {
-    pub src0: usize,
-    pub dst0: usize,
-    pub n: usize,
-    /// `None` for the background (drawn as it is).
-    pub xf: Option<Box<Xf>>,
+/// The view's runs of rows, on the host and on the device.
+pub(crate) struct Segments {
+    /// Non-empty runs in world order (background first).
+    rows: Vec<Seg>,
+    dev: CudaSlice<Seg>,
 }
 
-impl Segment {
-    /// The kernels' per-segment arguments: rows, first model row, first world row, whether it
-    /// moves, and its transform.
-    fn args(&self) -> (i32, i32, i32, i32, &Xf) {
-        let xf: &Xf = self.xf.as_deref().unwrap_or(&Xf::IDENTITY);
-        (self.n as i32, self.src0 as i32, self.dst0 as i32, self.xf.is_some() as i32, xf)
+impl Segments {
+    pub fn new(s: &Arc<CudaStream>) -> Result<Segments, DriverError> {
+        Ok(Segments { rows: Vec::new(), dev: s.alloc_zeros(1)? })
     }
-}
 
-/// The segments of the scene at time `t` (background first, then the actors alive then).
-pub(crate) fn segments(model: &SceneModel, scene: &Scene, dm: &DeviceModel, t: f64) -> Vec<Segment> {
-    let mut out = vec![Segment { src0: 0, dst0: 0, n: dm.offsets[1], xf: None }];
-    let mut dst = dm.offsets[1];
-    for ai in 0..model.actors.len() {
-        let Some(pose) = actor_pose(model, scene, ai, t) else { continue };
-        let n = dm.offsets[ai + 2] - dm.offsets[ai + 1];
-        let r = yaw_rotation(pose.heading);
-        let rot = ShRotation::new(dm.degree, r);
-        let kc = sh_coeffs(dm.degree);
-        let mut xf = Box::new(Xf::IDENTITY);
-        xf.r = std::array::from_fn(|k| r[k / 3][k % 3] as f32);
-        xf.t = pose.center.map(|v| v as f32);
-        (xf.c, xf.s) = ((pose.heading / 2.0).cos() as f32, (pose.heading / 2.0).sin() as f32);
-        let (mut src, mut dstv) = (vec![0.0; 3 * kc], vec![0.0; 3 * kc]);
-        for ki in 0..kc {
-            src.iter_mut().for_each(|v| *v = 0.0);
-            src[3 * ki] = 1.0;
-            rot.to_world(&src, &mut dstv, dm.degree);
-            for ko in 0..kc {
-                xf.m[ko * 16 + ki] = dstv[3 * ko] as f32;
+    /// Builds the runs of the scene at time `t` and copies them to the device.
+    pub fn build(
+        &mut self,
+        s: &Arc<CudaStream>,
+        model: &SceneModel,
+        scene: &Scene,
+        dm: &DeviceModel,
+        t: f64,
+    ) -> Result<(), CudaError> {
+        self.rows.clear();
+        let push = |rows: &mut Vec<Seg>, src0: usize, dst0: usize, n: usize, xf: Option<Xf>| {
+            if n > 0 {
+                let (moved, xf) = (xf.is_some() as i32, xf.unwrap_or(Xf::IDENTITY));
+                rows.push(Seg { src0: src0 as i32, dst0: dst0 as i32, n: n as i32, moved, xf });
             }
+        };
+        push(&mut self.rows, 0, 0, dm.offsets[1], None);
+        let mut dst = dm.offsets[1];
+        let kc = sh_coeffs(dm.degree);
+        let (mut src, mut dstv) = (vec![0.0; 3 * kc], vec![0.0; 3 * kc]);
+        for ai in 0..model.actors.len() {
+            let Some(pose) = actor_pose(model, scene, ai, t) else { continue };
+            let n = dm.offsets[ai + 2] - dm.offsets[ai + 1];
+            let r = yaw_rotation(pose.heading);
+            let rot = ShRotation::new(dm.degree, r);
+            let mut xf = Xf::IDENTITY;
+            xf.r = std::array::from_fn(|k| r[k / 3][k % 3] as f32);
+            xf.t = pose.center.map(|v| v as f32);
+            (xf.c, xf.s) = ((pose.heading / 2.0).cos() as f32, (pose.heading / 2.0).sin() as f32);
+            for ki in 0..kc {
+                src.iter_mut().for_each(|v| *v = 0.0);
+                src[3 * ki] = 1.0;
+                rot.to_world(&src, &mut dstv, dm.degree);
+                for ko in 0..kc {
+                    xf.m[ko * 16 + ki] = dstv[3 * ko] as f32;
+                }
+            }
+            push(&mut self.rows, dm.offsets[ai + 1], dst, n, Some(xf));
+            dst += n;
         }
-        out.push(Segment { src0: dm.offsets[ai + 1], dst0: dst, n, xf: Some(xf) });
-        dst += n;
+        if !self.rows.is_empty() {
+            grow(s, &mut self.dev, self.rows.len())?;
+            s.memcpy_htod(&self.rows, &mut self.dev.slice_mut(0..self.rows.len()))?;
+        }
+        Ok(())
     }
-    out
-}
 
-/// Rows drawn in total.
-pub(crate) fn world_rows(segs: &[Segment]) -> usize {
-    segs.iter().map(|s| s.n).sum()
+    /// Rows drawn in total.
+    pub fn world_rows(&self) -> usize {
+        self.rows.iter().map(|g| g.n as usize).sum()
+    }
+
+    /// The kernels' leading arguments: world rows and runs.
+    fn dims(&self) -> (i32, i32) {
+        (self.world_rows() as i32, self.rows.len() as i32)
+    }
 }
 
 /// Writes the world-frame model of `segs` at SH degree `degree`.
@@ -72,35 +93,35 @@ pub(crate) fn compose(
     k: &Kernels,
     s: &Arc<CudaStream>,
     dm: &DeviceModel,
-    segs: &[Segment],
+    segs: &Segments,
     degree: usize,
     w: WorldInputs,
 ) -> Result<(), DriverError> {
     let (kc_full, kc_act) = (sh_coeffs(dm.degree) as i32, sh_coeffs(degree) as i32);
-    for seg in segs.iter().filter(|g| g.n > 0) {
-        let (n, src0, dst0, moved, xf) = seg.args();
-        // SAFETY: model rows src0..src0+n and world rows dst0..dst0+n exist (offsets, world_inputs).
-        unsafe {
-            s.launch_builder(&k.compose_segment)
-                .arg(&n)
-                .arg(&src0)
-                .arg(&dst0)
-                .arg(&kc_full)
-                .arg(&kc_act)
-                .arg(&moved)
-                .arg(xf)
-                .arg(&dm.p.means)
-                .arg(&dm.p.log_scales)
-                .arg(&dm.p.rotations)
-                .arg(&dm.p.logits)
-                .arg(&dm.p.sh)
-                .arg(&mut *w.means)
-                .arg(&mut *w.log_scales)
-                .arg(&mut *w.rotations)
-                .arg(&mut *w.logits)
-                .arg(&mut *w.sh)
-                .launch(linear(seg.n))?;
-        }
+    let (n_world, nseg) = segs.dims();
+    if n_world == 0 {
+        return Ok(());
+    }
+    // SAFETY: the table holds `nseg` runs whose model rows src0..src0+n and world rows
+    // dst0..dst0+n exist (offsets, world_inputs of n_world rows).
+    unsafe {
+        s.launch_builder(&k.compose_rows)
+            .arg(&n_world)
+            .arg(&nseg)
+            .arg(&segs.dev)
+            .arg(&kc_full)
+            .arg(&kc_act)
+            .arg(&dm.p.means)
+            .arg(&dm.p.log_scales)
+            .arg(&dm.p.rotations)
+            .arg(&dm.p.logits)
+            .arg(&dm.p.sh)
+            .arg(&mut *w.means)
+            .arg(&mut *w.log_scales)
+            .arg(&mut *w.rotations)
+            .arg(&mut *w.logits)
+            .arg(&mut *w.sh)
+            .launch(linear(n_world as usize))?;
     }
     Ok(())
 }
@@ -122,7 +143,7 @@ pub(crate) fn scatter(
     k: &Kernels,
     s: &Arc<CudaStream>,
     dm: &mut DeviceModel,
-    segs: &[Segment],
+    segs: &Segments,
     degree: usize,
     gw: &GradientsOut,
     ex: Extras,
@@ -134,44 +155,43 @@ pub(crate) fn scatter(
     let (kc_full, kc_act) = (sh_coeffs(dm.degree) as i32, sh_coeffs(degree) as i32);
     let (pf, pe) = (PROJ_FLOATS as i32, PROJ_EXTENT as i32);
     let (dens, half_side) = (ex.densifying as i32, 0.5 * ex.max_side as f32);
-    for seg in segs.iter().filter(|g| g.n > 0) {
-        let (n, src0, dst0, moved, xf) = seg.args();
-        // SAFETY: as in `compose`; the world gradients hold the rows of the last render.
-        unsafe {
-            s.launch_builder(&k.scatter_segment)
-                .arg(&n)
-                .arg(&src0)
-                .arg(&dst0)
-                .arg(&kc_full)
-                .arg(&kc_act)
-                .arg(&moved)
-                .arg(xf)
-                .arg(gw.means)
-                .arg(gw.log_scales)
-                .arg(gw.rotations)
-                .arg(gw.logits)
-                .arg(gw.sh)
-                .arg(gw.mean2d)
-                .arg(gw.valid)
-                .arg(gw.proj)
-                .arg(&pf)
-                .arg(&pe)
-                .arg(&dm.p.log_scales)
-                .arg(&ex.flat_weight)
-                .arg(ex.counts)
-                .arg(&dens)
-                .arg(&half_side)
-                .arg(&mut dm.g.means)
-                .arg(&mut dm.g.log_scales)
-                .arg(&mut dm.g.rotations)
-                .arg(&mut dm.g.logits)
-                .arg(&mut dm.g.sh)
-                .arg(&mut dm.grad_sum)
-                .arg(&mut dm.seen)
-                .arg(&mut dm.max_radius)
-                .arg(&mut *ex.acc)
-                .launch(linear(seg.n))?;
-        }
+    let (n_world, nseg) = segs.dims();
+    if n_world == 0 {
+        return Ok(());
+    }
+    // SAFETY: as in `compose`; the world gradients hold the n_world rows of the last render.
+    unsafe {
+        s.launch_builder(&k.scatter_rows)
+            .arg(&n_world)
+            .arg(&nseg)
+            .arg(&segs.dev)
+            .arg(&kc_full)
+            .arg(&kc_act)
+            .arg(gw.means)
+            .arg(gw.log_scales)
+            .arg(gw.rotations)
+            .arg(gw.logits)
+            .arg(gw.sh)
+            .arg(gw.mean2d)
+            .arg(gw.valid)
+            .arg(gw.proj)
+            .arg(&pf)
+            .arg(&pe)
+            .arg(&dm.p.log_scales)
+            .arg(&ex.flat_weight)
+            .arg(ex.counts)
+            .arg(&dens)
+            .arg(&half_side)
+            .arg(&mut dm.g.means)
+            .arg(&mut dm.g.log_scales)
+            .arg(&mut dm.g.rotations)
+            .arg(&mut dm.g.logits)
+            .arg(&mut dm.g.sh)
+            .arg(&mut dm.grad_sum)
+            .arg(&mut dm.seen)
+            .arg(&mut dm.max_radius)
+            .arg(&mut *ex.acc)
+            .launch(linear(n_world as usize))?;
     }
     Ok(())
 }

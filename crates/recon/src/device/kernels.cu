@@ -33,33 +33,53 @@ __device__ __forceinline__ void warp_add(float* dst, float v) {
     if ((threadIdx.x & 31) == 0 && v != 0.0f) atomicAdd(dst, v);
 }
 
-// ---- compose (recon::compose::compose_into) ----
+// A run of world rows: model rows src0..src0+n drawn at world rows dst0.., moved by x when
+// `moved` (the background is drawn as it is). The table holds only non-empty runs, in world order.
+struct Seg {
+    int src0, dst0, n, moved;
+    Xf x;
+};
 
-extern "C" __global__ void compose_segment(int n, int src0, int dst0, int kc_full, int kc_act, int moved, Xf x,
-                                           const float* means, const float* log_scales, const float* rots,
-                                           const float* logits, const float* sh, float* w_means,
-                                           float* w_log_scales, float* w_rots, float* w_logits, float* w_sh) {
-    int j = blockIdx.x * blockDim.x + threadIdx.x;
-    if (j >= n) return;
-    size_t i = (size_t)src0 + j, o = (size_t)dst0 + j;
+// The run holding world row o (the last with dst0 <= o).
+__device__ __forceinline__ const Seg* seg_of(const Seg* segs, int nseg, int o) {
+    int lo = 0, hi = nseg - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) >> 1;
+        if (segs[mid].dst0 <= o) lo = mid;
+        else hi = mid - 1;
+    }
+    return segs + lo;
+}
+
+// ---- compose (recon::compose::compose_into): one thread per world row, every run at once ----
+
+extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full,
+                                        int kc_act, const float* means, const float* log_scales,
+                                        const float* rots, const float* logits, const float* sh, float* w_means,
+                                        float* w_log_scales, float* w_rots, float* w_logits, float* w_sh) {
+    int o = blockIdx.x * blockDim.x + threadIdx.x;
+    if (o >= n_world) return;
+    const Seg* g = seg_of(segs, nseg, o);
+    const Xf& x = g->x;
+    size_t i = (size_t)g->src0 + (o - g->dst0);
     const float* m = means + 3 * i;
     const float* q = rots + 4 * i;
     const float* c = sh + i * kc_full * 3;
-    float* wc = w_sh + o * kc_act * 3;
-    for (int a = 0; a < 3; a++) w_log_scales[3 * o + a] = log_scales[3 * i + a];
+    float* wc = w_sh + (size_t)o * kc_act * 3;
+    for (int a = 0; a < 3; a++) w_log_scales[3 * (size_t)o + a] = log_scales[3 * i + a];
     w_logits[o] = logits[i];
-    if (!moved) {
-        for (int a = 0; a < 3; a++) w_means[3 * o + a] = m[a];
-        for (int a = 0; a < 4; a++) w_rots[4 * o + a] = q[a];
+    if (!g->moved) {
+        for (int a = 0; a < 3; a++) w_means[3 * (size_t)o + a] = m[a];
+        for (int a = 0; a < 4; a++) w_rots[4 * (size_t)o + a] = q[a];
         for (int k = 0; k < kc_act * 3; k++) wc[k] = c[k];
         return;
     }
     for (int a = 0; a < 3; a++)
-        w_means[3 * o + a] = x.r[3 * a] * m[0] + x.r[3 * a + 1] * m[1] + x.r[3 * a + 2] * m[2] + x.t[a];
-    w_rots[4 * o] = x.c * q[0] - x.s * q[3];
-    w_rots[4 * o + 1] = x.c * q[1] - x.s * q[2];
-    w_rots[4 * o + 2] = x.c * q[2] + x.s * q[1];
-    w_rots[4 * o + 3] = x.c * q[3] + x.s * q[0];
+        w_means[3 * (size_t)o + a] = x.r[3 * a] * m[0] + x.r[3 * a + 1] * m[1] + x.r[3 * a + 2] * m[2] + x.t[a];
+    w_rots[4 * (size_t)o] = x.c * q[0] - x.s * q[3];
+    w_rots[4 * (size_t)o + 1] = x.c * q[1] - x.s * q[2];
+    w_rots[4 * (size_t)o + 2] = x.c * q[2] + x.s * q[1];
+    w_rots[4 * (size_t)o + 3] = x.c * q[3] + x.s * q[0];
     for (int ko = 0; ko < kc_act; ko++)
         for (int ch = 0; ch < 3; ch++) {
             float acc = 0.0f;
@@ -70,27 +90,30 @@ extern "C" __global__ void compose_segment(int n, int src0, int dst0, int kc_ful
 
 // ---- back to the models (recon::compose::scatter_gradients), the flattening term and the
 // density statistics (recon::train::Trainer::step, recon::densify::Stats::record); counts[1] is
-// the number of Gaussians drawn, acc[6] collects the sum of their smallest scales ----
+// the number of Gaussians drawn, acc[6] collects the sum of their smallest scales. One thread per
+// world row; every lane reaches the warp sum ----
 
-extern "C" __global__ void scatter_segment(int n, int src0, int dst0, int kc_full, int kc_act, int moved, Xf x,
-                                           const float* gw_means, const float* gw_log_scales, const float* gw_rots,
-                                           const float* gw_logits, const float* gw_sh, const float* gw_mean2d,
-                                           const int* valid, const float* proj, int proj_floats, int proj_extent,
-                                           const float* log_scales, float flat_w, const unsigned* counts,
-                                           int densifying, float half_side, float* g_means, float* g_log_scales,
-                                           float* g_rots, float* g_logits, float* g_sh, float* grad_sum,
-                                           unsigned* seen, float* max_radius, float* acc) {
-    int j = blockIdx.x * blockDim.x + threadIdx.x;
+extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full,
+                                        int kc_act, const float* gw_means, const float* gw_log_scales,
+                                        const float* gw_rots, const float* gw_logits, const float* gw_sh,
+                                        const float* gw_mean2d, const int* valid, const float* proj,
+                                        int proj_floats, int proj_extent, const float* log_scales, float flat_w,
+                                        const unsigned* counts, int densifying, float half_side, float* g_means,
+                                        float* g_log_scales, float* g_rots, float* g_logits, float* g_sh,
+                                        float* grad_sum, unsigned* seen, float* max_radius, float* acc) {
+    int o = blockIdx.x * blockDim.x + threadIdx.x;
     float e = 0.0f;
-    if (j < n) {
-        size_t i = (size_t)src0 + j, o = (size_t)dst0 + j;
-        for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gw_log_scales[3 * o + a];
+    if (o < n_world) {
+        const Seg* sg = seg_of(segs, nseg, o);
+        const Xf& x = sg->x;
+        size_t i = (size_t)sg->src0 + (o - sg->dst0);
+        for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gw_log_scales[3 * (size_t)o + a];
         g_logits[i] = gw_logits[o];
-        const float* gs = gw_sh + o * kc_act * 3;
+        const float* gs = gw_sh + (size_t)o * kc_act * 3;
         float* d = g_sh + i * kc_full * 3;
-        const float* gm = gw_means + 3 * o;
-        const float* gq = gw_rots + 4 * o;
-        if (!moved) {
+        const float* gm = gw_means + 3 * (size_t)o;
+        const float* gq = gw_rots + 4 * (size_t)o;
+        if (!sg->moved) {
             for (int a = 0; a < 3; a++) g_means[3 * i + a] = gm[a];
             for (int a = 0; a < 4; a++) g_rots[4 * i + a] = gq[a];
             for (int k = 0; k < kc_full * 3; k++) d[k] = k < kc_act * 3 ? gs[k] : 0.0f;
@@ -120,7 +143,7 @@ extern "C" __global__ void scatter_segment(int n, int src0, int dst0, int kc_ful
             if (densifying) {
                 grad_sum[i] += gw_mean2d[o] * half_side;
                 seen[i] += 1u;
-                const float* ext = proj + o * proj_floats + proj_extent;
+                const float* ext = proj + (size_t)o * proj_floats + proj_extent;
                 max_radius[i] = fmaxf(max_radius[i], fmaxf(ext[0], ext[1]));
             }
         }
@@ -268,30 +291,50 @@ extern "C" __global__ void ssim_terms(int p, const float* blurred, float* terms,
 }
 
 // The photometric gradient on the composite, then through the composite to RGB, alpha and the
-// sky texels.
+// sky texels. Thousands of sky pixels share a texel, so the texel gradients are summed per warp
+// first (lanes with the same texel, `__match_any_sync`) and only the lowest such lane adds to
+// global memory: one atomic per distinct texel, tap and channel instead of one per pixel.
+// Launched with 256 threads a block (`linear`); every lane reaches the warp-wide calls.
 extern "C" __global__ void photo_grad(int p, CamK cam, int sky_res, const float* sky, const float* alpha,
                                       const float* out, const float* target, const float* bterms, float w_ssim,
                                       const float* g_out, float* up_rgb, float* up_alpha, float* sky_grad) {
+    __shared__ float stage[8][32][3];
     int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= p) return;
-    int idx[4];
-    float w[4];
-    pixel_taps(cam, i, sky_res, idx, w);
-    float a = alpha[i], ga = 0.0f;
-    for (int c = 0; c < 3; c++) {
-        const float* t = bterms + (size_t)c * 3 * p;
-        float x = out[3 * i + c], y = target[3 * i + c];
-        float g = g_out[3 * i + c] - w_ssim / 3.0f * (t[i] + 2.0f * x * t[p + i] + y * t[2 * p + i]);
-        float s = 0.0f;
-        for (int k = 0; k < 4; k++) s += w[k] * sky[idx[k] * 3 + c];
-        up_rgb[3 * i + c] = g;
-        ga -= g * s;
-        float gs = g * (1.0f - a);
-        if (gs != 0.0f)
-            for (int k = 0; k < 4; k++)
-                if (w[k] != 0.0f) atomicAdd(&sky_grad[idx[k] * 3 + c], w[k] * gs);
+    int lane = threadIdx.x & 31, wid = threadIdx.x >> 5;
+    int idx[4] = {-1, -1, -1, -1};
+    float w[4] = {0.0f, 0.0f, 0.0f, 0.0f}, gs[3] = {0.0f, 0.0f, 0.0f};
+    if (i < p) {
+        pixel_taps(cam, i, sky_res, idx, w);
+        float a = alpha[i], ga = 0.0f;
+        for (int c = 0; c < 3; c++) {
+            const float* t = bterms + (size_t)c * 3 * p;
+            float x = out[3 * i + c], y = target[3 * i + c];
+            float g = g_out[3 * i + c] - w_ssim / 3.0f * (t[i] + 2.0f * x * t[p + i] + y * t[2 * p + i]);
+            float s = 0.0f;
+            for (int k = 0; k < 4; k++) s += w[k] * sky[idx[k] * 3 + c];
+            up_rgb[3 * i + c] = g;
+            ga -= g * s;
+            gs[c] = g * (1.0f - a);
+        }
+        up_alpha[i] = ga;
     }
-    up_alpha[i] = ga;
+    bool any = gs[0] != 0.0f || gs[1] != 0.0f || gs[2] != 0.0f;
+    for (int k = 0; k < 4; k++) {
+        int key = any && w[k] != 0.0f ? idx[k] : -1;
+        unsigned peers = __match_any_sync(0xffffffffu, key);
+        for (int c = 0; c < 3; c++) stage[wid][lane][c] = w[k] * gs[c];
+        __syncwarp();
+        if (key >= 0 && lane == __ffs(peers) - 1) {
+            float sum[3] = {0.0f, 0.0f, 0.0f};
+            for (unsigned m = peers; m; m &= m - 1) {
+                int l = __ffs(m) - 1;
+                for (int c = 0; c < 3; c++) sum[c] += stage[wid][l][c];
+            }
+            for (int c = 0; c < 3; c++)
+                if (sum[c] != 0.0f) atomicAdd(&sky_grad[key * 3 + c], sum[c]);
+        }
+        __syncwarp();
+    }
 }
 
 // Relative depth L1 where the prior has a value; `scale` = weight / valid count.

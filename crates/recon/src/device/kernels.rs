@@ -2,12 +2,12 @@
 //! settings, and the plain-data arguments they take (`#[repr(C)]` twins of the CUDA structs).
 
 use crate::ReconError;
-use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig};
+use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig, ValidAsZeroBits};
 use splat_cuda::Gpu;
 
 pub(crate) struct Kernels {
-    pub compose_segment: CudaFunction,
-    pub scatter_segment: CudaFunction,
+    pub compose_rows: CudaFunction,
+    pub scatter_rows: CudaFunction,
     pub count_valid: CudaFunction,
     pub photo_l1: CudaFunction,
     pub blur_h: CudaFunction,
@@ -34,8 +34,8 @@ impl Kernels {
         let dm = gpu.compile_module(include_str!("densify.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
         let fd = |name: &str| dm.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
         Ok(Kernels {
-            compose_segment: f("compose_segment")?,
-            scatter_segment: f("scatter_segment")?,
+            compose_rows: f("compose_rows")?,
+            scatter_rows: f("scatter_rows")?,
             count_valid: f("count_valid")?,
             photo_l1: f("photo_l1")?,
             blur_h: f("blur_h")?,
@@ -119,6 +119,22 @@ impl Xf {
         Xf { r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], t: [0.0; 3], c: 1.0, s: 0.0, m }
     };
 }
+
+/// `Seg`: a run of world rows (model rows `src0..src0 + n` drawn at world rows `dst0..`), moved by
+/// `xf` when `moved` is 1 (see kernels.cu).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Seg {
+    pub src0: i32,
+    pub dst0: i32,
+    pub n: i32,
+    pub moved: i32,
+    pub xf: Xf,
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct; all zeros is a valid (empty) run.
+unsafe impl DeviceRepr for Seg {}
+unsafe impl ValidAsZeroBits for Seg {}
 
 /// `Win`: the SSIM window (recon::ssim's 11 taps, sigma 1.5, normalised).
 #[repr(C)]

@@ -52,6 +52,8 @@ pub struct DeviceTrainer<'a> {
     dm: DeviceModel,
     targets: Vec<Option<ViewTargets>>,
     scratch: loss::Scratch,
+    /// The current view's runs of rows (rebuilt every iteration).
+    segs: compose::Segments,
     train_views: Vec<usize>,
     /// Seconds spent in density control (clone, split, prune) and how often.
     density_time: (f64, usize),
@@ -83,6 +85,7 @@ impl<'a> DeviceTrainer<'a> {
             .map(|v| (!v.held_out).then(|| ViewTargets::upload(&s, v)).transpose())
             .collect::<Result<_, _>>()?;
         let scratch = loss::Scratch::new(&s).map_err(dev)?;
+        let segs = compose::Segments::new(&s).map_err(dev)?;
         Ok(DeviceTrainer {
             scene,
             views,
@@ -97,6 +100,7 @@ impl<'a> DeviceTrainer<'a> {
             dm,
             targets,
             scratch,
+            segs,
             density_time: (0.0, 0),
         })
     }
@@ -133,10 +137,10 @@ impl<'a> DeviceTrainer<'a> {
         let degree = self.cfg.active_degree(it);
         let opts = RenderOptions::default();
         let s = self.gpu.stream().clone();
-        let segs = compose::segments(&self.state.model, self.scene, &self.dm, view.time);
-        let n_world = compose::world_rows(&segs);
+        self.segs.build(&s, &self.state.model, self.scene, &self.dm, view.time).map_err(cuda)?;
+        let n_world = self.segs.world_rows();
         let w = self.gpu.world_inputs(&mut self.sess, n_world, degree).map_err(cuda)?;
-        compose::compose(&self.k, &s, &self.dm, &segs, degree, w).map_err(dev)?;
+        compose::compose(&self.k, &s, &self.dm, &self.segs, degree, w).map_err(dev)?;
         self.gpu.forward_resident(&mut self.sess, &view.cam, &opts).map_err(cuda)?;
         let t = self.targets[vi].as_ref().ok_or_else(|| ReconError::Input(format!("view {vi} is held out")))?;
         s.memset_zeros(&mut self.dm.sky_g).map_err(dev)?;
@@ -161,7 +165,7 @@ impl<'a> DeviceTrainer<'a> {
             max_side: view.width().max(view.height()),
             acc: &mut self.scratch.acc,
         };
-        compose::scatter(&self.k, &s, &mut self.dm, &segs, degree, &gw, ex).map_err(dev)?;
+        compose::scatter(&self.k, &s, &mut self.dm, &self.segs, degree, &gw, ex).map_err(dev)?;
         let mut acc = [0f32; loss::ACC_LEN];
         let mut counts = [0u32; 2];
         s.memcpy_dtoh(&self.scratch.acc, &mut acc).map_err(dev)?;
