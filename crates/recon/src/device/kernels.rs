@@ -1,5 +1,6 @@
-//! The trainer's kernels (`kernels.cu`, and `densify.cu` for density control), compiled once per GPU with the rasterizer's NVRTC
-//! settings, and the plain-data arguments they take (`#[repr(C)]` twins of the CUDA structs).
+//! The trainer's kernels (`kernels.cu`, and `densify.cu` for density control), compiled once per
+//! GPU with the rasterizer's NVRTC settings, and the plain-data arguments they take (`#[repr(C)]`
+//! twins of the CUDA structs).
 
 use crate::ReconError;
 use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig, ValidAsZeroBits};
