@@ -71,6 +71,7 @@ fn curved_road(with_lanes: bool) -> Scene {
                 size_lwh: [4.5, 2.0, 1.6],
                 velocity: None,
                 valid: true,
+                motion: None,
             }
         })
         .collect();

@@ -35,6 +35,7 @@ fn scene_with(map: Option<Map>) -> Scene {
             size_lwh: [4.5, 1.9, 1.5],
             velocity: None,
             valid: true,
+            motion: None,
         })
         .collect();
     Scene {

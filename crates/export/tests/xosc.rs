@@ -38,6 +38,7 @@ fn track(id: &str, class: ObjectClass, size: [f64; 3], frames: &[Frame], pose: i
                 size_lwh: size,
                 velocity: None,
                 valid: true,
+                motion: None,
             })
         })
         .collect();

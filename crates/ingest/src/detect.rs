@@ -33,6 +33,8 @@ pub enum Expect {
     KittiOdometry,
     /// An instant-ngp / nerfstudio `transforms.json` folder (`transforms_json`).
     TransformsJson,
+    /// A PandaSet sequence folder (`pandaset`).
+    Pandaset,
 }
 
 /// Decodes a record; the error says why neither kind fits.
@@ -53,6 +55,8 @@ pub fn decode_record(data: &[u8], expect: Expect) -> Result<Decoded, String> {
         Expect::Frame => frame(),
         Expect::Scenario => scenario(),
         Expect::Auto => frame().or_else(|a| scenario().map_err(|b| format!("{a}; {b}"))),
-        Expect::KittiOdometry | Expect::TransformsJson => Err("folder formats are not TFRecord records".to_string()),
+        Expect::KittiOdometry | Expect::TransformsJson | Expect::Pandaset => {
+            Err("folder formats are not TFRecord records".to_string())
+        }
     }
 }

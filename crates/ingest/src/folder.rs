@@ -1,9 +1,9 @@
-//! Folder inputs: a KITTI odometry sequence or a `transforms.json` photo set, recognised from
+//! Folder inputs: a KITTI odometry sequence, a PandaSet sequence or a `transforms.json` photo set, recognised from
 //! the folder's content (or forced), each converted to one scene.
 
 use crate::detect::Expect;
 use crate::error::{content, IngestError};
-use crate::{kitti, transforms_json};
+use crate::{kitti, pandaset, transforms_json};
 use scene::Scene;
 use std::path::{Path, PathBuf};
 
@@ -26,12 +26,13 @@ pub fn read_folder(
 ) -> Result<Scene, IngestError> {
     let kind = match expect {
         Expect::Auto if kitti::looks_like(dir) => Expect::KittiOdometry,
+        Expect::Auto if pandaset::looks_like(dir) => Expect::Pandaset,
         Expect::Auto if transforms_json::looks_like(dir) => Expect::TransformsJson,
         Expect::Auto => {
             return Err(content(
                 dir,
-                "not a recognised folder: expected a KITTI odometry sequence (calib.txt, poses.txt, image_0/) \
-                 or a transforms.json photo set",
+                "not a recognised folder: expected a KITTI odometry sequence (calib.txt, poses.txt, image_0/), \
+                 a PandaSet sequence (camera/, lidar/poses.json) or a transforms.json photo set",
             ))
         }
         other => other,
@@ -39,6 +40,7 @@ pub fn read_folder(
     match kind {
         Expect::KittiOdometry => kitti::read(dir, staging, progress),
         Expect::TransformsJson => transforms_json::read(dir, staging, progress),
+        Expect::Pandaset => pandaset::read(dir, staging, progress),
         _ => Err(content(dir, "is a folder; Waymo and WOMD inputs are TFRecord files")),
     }
 }

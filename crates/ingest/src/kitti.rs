@@ -221,7 +221,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
             if let Some(root) = staging {
                 std::fs::copy(&src, root.join(&rel)).map_err(|e| IngestError::Io { file: src.clone(), source: e })?;
             }
-            images.push(ImageRef { camera: cam.into(), path: rel });
+            images.push(ImageRef::at_frame_time(cam, rel));
         }
         frames.push(Frame { index: i, timestamp_s: times[i].2[0], world_from_ego, images, lidar: None });
         progress.inc(1);

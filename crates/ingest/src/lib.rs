@@ -2,7 +2,7 @@
 //!
 //! Inputs are TFRecord files of Waymo v1 perception `Frame`s (one segment, possibly split over
 //! several files) or of WOMD `Scenario`s (one scene per record), or one folder: a KITTI odometry
-//! sequence (`kitti`) or an instant-ngp / nerfstudio `transforms.json` set (`transforms_json`).
+//! sequence (`kitti`), a PandaSet sequence (`pandaset`) or an instant-ngp / nerfstudio `transforms.json` set (`transforms_json`).
 //! The kind is detected from the content (`detect`, `folder`) or forced. Output goes to a staging directory that is renamed into place
 //! only when everything converted and validated, so bad input never leaves a partial scene.
 
@@ -10,6 +10,7 @@ pub mod detect;
 pub mod error;
 pub mod folder;
 pub mod kitti;
+pub mod pandaset;
 pub mod proto;
 pub mod range_image;
 pub mod shared;
@@ -46,7 +47,7 @@ fn convert(
     if let Some(dir) = folder::folder_of(inputs, expect) {
         return Ok(vec![folder::read_folder(&dir, expect, staging, progress)?]);
     }
-    if let Some(e @ (Expect::KittiOdometry | Expect::TransformsJson)) = Some(expect) {
+    if let Some(e @ (Expect::KittiOdometry | Expect::TransformsJson | Expect::Pandaset)) = Some(expect) {
         let first = inputs.first().cloned().unwrap_or_default();
         return Err(error::content(first, format!("{e:?} input must be one folder")));
     }

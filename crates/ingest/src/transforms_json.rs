@@ -261,7 +261,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
             index: k,
             timestamp_s: k as f64,
             world_from_ego,
-            images: vec![ImageRef { camera: cam.name, path }],
+            images: vec![ImageRef::at_frame_time(cam.name, path)],
             lidar: None,
         })
         .collect();

@@ -296,6 +296,7 @@ impl<'a> WaymoFrameBuilder<'a> {
                 size_lwh: [v[3], v[4], v[5]],
                 velocity: velocity.filter(|v| v.is_finite()),
                 valid: true,
+                motion: None,
             };
             let t =
                 self.tracks.entry(id).or_insert_with(|| PendingTrack { class: class_of(l.r#type), states: Vec::new() });
@@ -320,7 +321,7 @@ impl<'a> WaymoFrameBuilder<'a> {
             for (cam, staged) in p.images {
                 let rel = image_rel_path(i, &cam);
                 rename(self.staging, staged, &rel)?;
-                images.push(ImageRef { camera: cam, path: rel });
+                images.push(ImageRef::at_frame_time(cam, rel));
             }
             let lidar = match p.lidar {
                 Some((n, staged)) => {

@@ -94,7 +94,15 @@ pub fn scenario_to_scene(file: &Path, index: usize, sc: &Scenario) -> Result<Sce
                         "valid state with non-finite or negative values",
                     ));
                 }
-                Ok(TrackState { frame: i, center, heading, size_lwh: size, velocity: Some(velocity), valid })
+                Ok(TrackState {
+                    frame: i,
+                    center,
+                    heading,
+                    size_lwh: size,
+                    velocity: Some(velocity),
+                    valid,
+                    motion: None,
+                })
             })
             .collect::<Result<Vec<_>, _>>()?;
         tracks.push(Track { id: tid.to_string(), class: class_of(t.object_type), states });

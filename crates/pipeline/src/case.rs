@@ -219,6 +219,7 @@ mod tests {
                 size_lwh: [0.6, 0.6, 1.7],
                 velocity: None,
                 valid: true,
+                motion: None,
             })
             .collect();
         Scene {

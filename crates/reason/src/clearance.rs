@@ -140,6 +140,7 @@ mod tests {
                 size_lwh: [4.5, 2.0, 1.6],
                 velocity: None,
                 valid: true,
+                motion: None,
             })
             .collect();
         Scene {

@@ -26,6 +26,7 @@ fn track(id: &str, class: ObjectClass, size: [f64; 3], heading: f64, at: impl Fn
                 size_lwh: size,
                 velocity: None,
                 valid: true,
+                motion: None,
             }
         })
         .collect();

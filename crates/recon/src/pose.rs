@@ -80,6 +80,7 @@ mod tests {
             size_lwh: [4.0, 2.0, 1.5],
             velocity: None,
             valid: true,
+            motion: None,
         }
     }
 

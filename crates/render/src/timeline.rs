@@ -8,31 +8,11 @@
 //! and the adversary by `backproject`, both on the same clock.
 
 use crate::RenderError;
-use scene::glam::{DMat3, DQuat};
 use scene::{Executed, Scene, Transform3};
 
-/// The logged ego pose at time `t` (scene clock, seconds).
+/// The logged ego pose at time `t` (scene clock, seconds): [`Scene::world_from_ego_at`].
 pub fn world_from_ego_at(scene: &Scene, t: f64) -> Transform3 {
-    let f = &scene.frames;
-    let i = f.partition_point(|fr| fr.timestamp_s <= t);
-    if i == 0 {
-        return f[0].world_from_ego;
-    }
-    if i == f.len() {
-        return f[f.len() - 1].world_from_ego;
-    }
-    let (a, b) = (&f[i - 1], &f[i]);
-    let span = b.timestamp_s - a.timestamp_s;
-    let w = if span > 0.0 { (t - a.timestamp_s) / span } else { 0.0 };
-    let (ra, rb) = (a.world_from_ego.rotation(), b.world_from_ego.rotation());
-    let qa = DQuat::from_mat3(&ra).normalize();
-    let mut qb = DQuat::from_mat3(&rb).normalize();
-    if qa.dot(qb) < 0.0 {
-        qb = -qb;
-    }
-    let rotation = DMat3::from_quat(qa.slerp(qb, w));
-    let translation = a.world_from_ego.translation().lerp(b.world_from_ego.translation(), w);
-    Transform3::from_rotation_translation(rotation, translation)
+    scene.world_from_ego_at(t)
 }
 
 /// The frame times of a clip: `start + k / fps` for every k with a time not after `end`.

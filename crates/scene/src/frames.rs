@@ -12,6 +12,11 @@
 //!   turns it z-up with the origin on the road below that camera.
 //! * **NeRF world** (instant-ngp `transforms.json`): already z-up (colmap2nerf rotates the mean
 //!   camera up to +z); `world_from_nerf_world` is the identity, units are the file's own.
+//! * **PandaSet LiDAR** (`pandaset_lidar`): the roof LiDAR's pose, which PandaSet gives in place
+//!   of a vehicle frame; z up, the vehicle's forward axis is +y (established from the motion by
+//!   `ingest::pandaset`). The ego origin is on the road below it. PandaSet's world is the LiDAR
+//!   at frame 0 (z up, metres) and is used as is. A PandaSet cuboid's `yaw` is 0 when its length
+//!   points along world +y (`heading_from_pandaset_yaw`).
 //! * **Box**: a tracked object's frame: origin at the box centre, x along its length (heading),
 //!   y left, z up. `world_from_box` comes from the centre and the heading (yaw about world z).
 //!
@@ -72,6 +77,26 @@ pub fn world_from_nerf_world() -> Transform3 {
     Transform3::IDENTITY
 }
 
+/// `pandaset_lidar_from_ego`: the ego frame (x forward, y left, z up, origin on the road) in the
+/// frame of PandaSet's LiDAR pose, given the LiDAR-frame unit vector the vehicle drives along
+/// (horizontal: +x, -x, +y or -y) and the height of the LiDAR pose's origin above the road.
+pub fn pandaset_lidar_from_ego(forward_in_lidar: DVec3, lidar_above_road_m: f64) -> Transform3 {
+    let up = DVec3::Z;
+    let x = forward_in_lidar.normalize();
+    let y = up.cross(x);
+    Transform3::from_rotation_translation(DMat3::from_cols(x, y, up), DVec3::new(0.0, 0.0, -lidar_above_road_m))
+}
+
+/// The forward axis of PandaSet's LiDAR pose as established on the shared sequence 002 (the
+/// ego's motion runs along +y to within 1.5 degrees on every frame).
+pub const PANDASET_LIDAR_FORWARD: DVec3 = DVec3::Y;
+
+/// Our box heading (yaw of the length axis from world +x) from a PandaSet cuboid `yaw` (0 when
+/// the length points along world +y, counter-clockwise positive): `yaw + pi/2`, wrapped.
+pub fn heading_from_pandaset_yaw(yaw: f64) -> f64 {
+    wrap_angle(yaw + std::f64::consts::FRAC_PI_2)
+}
+
 /// `world_from_box` for a box with centre `center` and heading `heading` (yaw about world z).
 pub fn world_from_box(center: DVec3, heading: f64) -> Transform3 {
     Transform3::from_yaw_translation(heading, center)
@@ -111,6 +136,29 @@ pub fn box_corners(size_lwh: [f64; 3]) -> [DVec3; 8] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pandaset_lidar_frame_round_trip() {
+        let lidar_from_ego = pandaset_lidar_from_ego(PANDASET_LIDAR_FORWARD, 0.35);
+        // Ego forward (+x) is the LiDAR's +y, ego left (+y) its -x, up stays up.
+        assert!((lidar_from_ego.transform_vector(DVec3::X) - DVec3::Y).length() < 1e-15);
+        assert!((lidar_from_ego.transform_vector(DVec3::Y) - DVec3::NEG_X).length() < 1e-15);
+        assert!((lidar_from_ego.transform_vector(DVec3::Z) - DVec3::Z).length() < 1e-15);
+        // The ego origin is on the road, 0.35 m below the LiDAR pose's origin.
+        assert!((lidar_from_ego.transform_point(DVec3::ZERO) - DVec3::new(0.0, 0.0, -0.35)).length() < 1e-15);
+        assert!((lidar_from_ego.rotation().determinant() - 1.0).abs() < 1e-15);
+        let world_from_lidar = Transform3::from_rotation_translation(
+            DMat3::from_euler(glam::EulerRot::ZYX, -0.79, 0.03, 0.01),
+            DVec3::new(3.0, -4.0, 0.2),
+        );
+        let world_from_ego = world_from_lidar * lidar_from_ego;
+        let p = DVec3::new(12.0, -3.0, 1.0);
+        let back = (world_from_ego * lidar_from_ego.inverse() * world_from_lidar.inverse()).transform_point(p);
+        assert!((back - p).length() < 1e-12);
+        // A cuboid yaw of 0 points along world +y: heading pi/2; yaw pi/2 points along -x.
+        assert!((heading_from_pandaset_yaw(0.0) - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert!((heading_from_pandaset_yaw(std::f64::consts::FRAC_PI_2).abs() - std::f64::consts::PI).abs() < 1e-12);
+    }
 
     #[test]
     fn waymo_forward_is_cv_depth() {

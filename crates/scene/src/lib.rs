@@ -31,6 +31,6 @@ pub use motion::Pose2;
 pub use output::{write_file_atomic, StagedDir};
 pub use plan::{Behavior, Plan, PlanPath, Risk, Waypoint};
 pub use summary::SceneSummary;
-pub use track::{ObjectClass, Track, TrackState};
+pub use track::{LoggedMotion, ObjectClass, Track, TrackState};
 pub use transform::Transform3;
 pub use zones::{Zone, ZoneLayout};

@@ -25,6 +25,8 @@ pub enum SourceKind {
     KittiOdometry,
     /// An instant-ngp / nerfstudio `transforms.json` photo set (background only, synthetic clock).
     TransformsJson,
+    /// A PandaSet sequence folder (cameras with their own poses and times, LiDAR, cuboid tracks).
+    Pandaset,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,6 +46,8 @@ pub enum EgoSizeSource {
     Track,
     /// The source gives none: the paper's default 4.5 x 2.0 m footprint.
     Default,
+    /// The source documents its recording vehicle (PandaSet: a Chrysler Pacifica).
+    Documented,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -65,6 +69,18 @@ pub const DEFAULT_EGO_SIZE_LWH: [f64; 3] = [4.5, 2.0, 1.8];
 pub struct ImageRef {
     pub camera: String,
     pub path: String,
+    /// The image's own capture time (s, the scene clock) where the source gives one that differs
+    /// from the frame's (PandaSet: each camera fires as the LiDAR sweeps past it). The camera's
+    /// pose is the ego's at this time ([`Scene::world_from_ego_at`]); `None`: the frame's time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timestamp_s: Option<f64>,
+}
+
+impl ImageRef {
+    /// An image taken at its frame's time.
+    pub fn at_frame_time(camera: impl Into<String>, path: impl Into<String>) -> Self {
+        Self { camera: camera.into(), path: path.into(), timestamp_s: None }
+    }
 }
 
 /// A LiDAR sweep: little-endian f32 `x y z intensity` per point, ego frame of this frame.
@@ -108,6 +124,32 @@ impl Scene {
 
     pub fn track(&self, id: &str) -> Option<&Track> {
         self.tracks.iter().find(|t| t.id == id)
+    }
+
+    /// The capture time of `image` of `frame` (its own time, else the frame's).
+    pub fn image_time(frame: &Frame, image: &ImageRef) -> f64 {
+        image.timestamp_s.unwrap_or(frame.timestamp_s)
+    }
+
+    /// The logged ego pose at time `t` (scene clock, s): translation linear and rotation slerped
+    /// between the two frames around `t`; outside the log the nearest frame's pose is held.
+    /// The identity for a scene without frames.
+    pub fn world_from_ego_at(&self, t: f64) -> Transform3 {
+        let f = &self.frames;
+        let i = f.partition_point(|fr| fr.timestamp_s <= t);
+        if f.is_empty() {
+            return Transform3::IDENTITY;
+        }
+        if i == 0 {
+            return f[0].world_from_ego;
+        }
+        if i == f.len() {
+            return f[f.len() - 1].world_from_ego;
+        }
+        let (a, b) = (&f[i - 1], &f[i]);
+        let span = b.timestamp_s - a.timestamp_s;
+        let w = if span > 0.0 { (t - a.timestamp_s) / span } else { 0.0 };
+        a.world_from_ego.interpolate(&b.world_from_ego, w)
     }
 
     /// Seconds from the first to the last frame.

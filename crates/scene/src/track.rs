@@ -28,6 +28,19 @@ impl ObjectClass {
     }
 }
 
+/// How the log's annotators labelled an object's motion at one frame (PandaSet's
+/// `attributes.object_motion`): distinct from a speed threshold, since a car stopped at a light
+/// and a car parked at the kerb are both still.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoggedMotion {
+    Moving,
+    /// Stopped in traffic (will move on).
+    Stopped,
+    /// Parked (at the kerb, in a bay).
+    Parked,
+}
+
 /// The state of one track at one frame. Positions and velocities are world-frame SI values.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrackState {
@@ -44,6 +57,9 @@ pub struct TrackState {
     pub velocity: Option<DVec3>,
     /// False where the source marks the state as padding (WOMD `valid = false`).
     pub valid: bool,
+    /// The source's own motion label at this frame, where it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<LoggedMotion>,
 }
 
 /// One tracked object across the scene.

@@ -5,7 +5,7 @@
 //! (`world_from_camera = world_from_ego * ego_from_camera`). On disk it is a 4x4 row-major
 //! matrix, the layout Waymo uses, so a person can compare it with the source data.
 
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 /// A rigid (rotation + translation) transform. The rotation part is kept exactly as read
@@ -102,6 +102,26 @@ impl Transform3 {
 
     pub fn is_finite(&self) -> bool {
         self.0.is_finite()
+    }
+
+    /// The rigid transform a fraction `w` of the way from `self` (0) to `other` (1): translation
+    /// linear, rotation slerped along the shorter arc (stays a rotation, unlike a matrix blend).
+    pub fn interpolate(&self, other: &Transform3, w: f64) -> Transform3 {
+        let qa = DQuat::from_mat3(&self.rotation()).normalize();
+        let mut qb = DQuat::from_mat3(&other.rotation()).normalize();
+        if qa.dot(qb) < 0.0 {
+            qb = -qb;
+        }
+        let rotation = DMat3::from_quat(qa.slerp(qb, w));
+        Self::from_rotation_translation(rotation, self.translation().lerp(other.translation(), w))
+    }
+
+    /// A transform from a unit quaternion `(w, x, y, z)` and a translation; `None` unless the
+    /// values are finite and the quaternion's norm is within 1e-3 of 1 (it is then normalised).
+    pub fn from_quaternion_translation(wxyz: [f64; 4], translation: DVec3) -> Option<Self> {
+        let q = DQuat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0]);
+        let ok = q.is_finite() && translation.is_finite() && (q.length() - 1.0).abs() <= 1e-3;
+        ok.then(|| Self::from_rotation_translation(DMat3::from_quat(q.normalize()), translation))
     }
 }
 

@@ -112,6 +112,16 @@ pub fn validate_scene(scene: &Scene, dir: Option<&Path>) -> Check {
                 return fail(format!("{g}.camera"), format!("camera `{}` has two images in this frame", im.camera));
             }
             relative_file(dir, &format!("{g}.path"), &im.path, "images/")?;
+            if let Some(t) = im.timestamp_s {
+                // An image's own time stays within one second of its frame's (a camera fires
+                // within the frame's sweep; anything further is a wrong clock).
+                if !(t.is_finite() && (t - fr.timestamp_s).abs() <= 1.0) {
+                    return fail(
+                        format!("{g}.timestamp_s"),
+                        format!("{t} s must be finite and within 1 s of the frame's {} s", fr.timestamp_s),
+                    );
+                }
+            }
         }
         if let Some(l) = &fr.lidar {
             if let Some(len) = relative_file(dir, &f("lidar.path"), &l.path, "lidar/")? {

@@ -37,6 +37,7 @@ fn track(id: &str, frames: &[Frame], s_of_t: impl Fn(f64) -> f64) -> Track {
                 size_lwh: [4.6, 1.9, 1.5],
                 velocity: None,
                 valid: true,
+                motion: None,
             }
         })
         .collect();

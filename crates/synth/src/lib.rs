@@ -153,7 +153,7 @@ impl Sequence {
                     images: self
                         .cameras
                         .iter()
-                        .map(|c| ImageRef { camera: c.name.clone(), path: image_rel_path(f, &c.name) })
+                        .map(|c| ImageRef::at_frame_time(c.name.clone(), image_rel_path(f, &c.name)))
                         .collect(),
                     lidar: lidar_points.get(f).map(|&points| LidarRef { path: lidar_rel_path(f), points }),
                 })

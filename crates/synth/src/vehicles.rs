@@ -210,6 +210,7 @@ pub fn tracks(vehicles: &[Vehicle], frames: usize) -> Vec<Track> {
                     size_lwh: v.size_lwh,
                     velocity: Some(v.velocity()),
                     valid: true,
+                    motion: None,
                 })
                 .collect(),
         })

@@ -1,5 +1,5 @@
 //! `carla-gs ingest <input>... --out <scene_dir>`: TFRecord files or one folder (KITTI odometry,
-//! `transforms.json`).
+//! PandaSet, `transforms.json`).
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -13,12 +13,14 @@ pub enum Format {
     KittiOdometry,
     /// An instant-ngp / nerfstudio folder with transforms.json.
     TransformsJson,
+    /// A PandaSet sequence folder (camera/<name>/, lidar/, annotations/cuboids/ as JSON).
+    Pandaset,
 }
 
 #[derive(clap::Args)]
 pub struct Args {
     /// TFRecord files (one Waymo segment, or WOMD scenario files), or one folder (KITTI odometry
-    /// sequence, transforms.json photo set).
+    /// sequence, PandaSet sequence, transforms.json photo set).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output scene directory (several WOMD scenarios: one sub-directory per scenario id).
@@ -39,6 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(Format::Womd) => ingest::Expect::Scenario,
         Some(Format::KittiOdometry) => ingest::Expect::KittiOdometry,
         Some(Format::TransformsJson) => ingest::Expect::TransformsJson,
+        Some(Format::Pandaset) => ingest::Expect::Pandaset,
     };
     let pb = if ingest::folder::folder_of(&a.inputs, expect).is_some() {
         super::progress::count_bar("ingest images")

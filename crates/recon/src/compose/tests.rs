@@ -24,6 +24,7 @@ fn scene() -> Scene {
         size_lwh: [4.0, 2.0, 1.5],
         velocity: None,
         valid: true,
+        motion: None,
     };
     Scene {
         format: scene::SCENE_FORMAT.into(),

@@ -1,0 +1,250 @@
+//! PandaSet folders: the shared real sequence 002 (counts, the ego's path, frame conventions
+//! checked by projecting the annotators' own cuboids and against the logged camera poses) and
+//! small hand-made PandaSet-like folders whose faults must be refused naming the file and
+//! field, with nothing left behind.
+
+use indicatif::ProgressBar;
+use ingest::{Expect, IngestError};
+use scene::glam::DVec3;
+use scene::{LoggedMotion, ObjectClass, Scene, Transform3};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+fn run(input: &Path, out: &Path, expect: Expect) -> Result<Scene, IngestError> {
+    ingest::ingest(&[input.to_path_buf()], out, expect, false, &ProgressBar::hidden()).map(|mut w| w.remove(0).scene)
+}
+
+fn read_gz_json(p: &Path) -> Value {
+    let bytes = ingest::pandaset::files::read_bytes(p).unwrap();
+    serde_json::from_slice(&bytes).unwrap()
+}
+
+fn pose(v: &Value) -> Transform3 {
+    let (p, h) = (&v["position"], &v["heading"]);
+    let f = |x: &Value| x.as_f64().unwrap();
+    Transform3::from_quaternion_translation(
+        [f(&h["w"]), f(&h["x"]), f(&h["y"]), f(&h["z"])],
+        DVec3::new(f(&p["x"]), f(&p["y"]), f(&p["z"])),
+    )
+    .unwrap()
+}
+
+fn world_from_cv(s: &Scene, frame: usize, camera: &str) -> Transform3 {
+    let f = &s.frames[frame];
+    let im = f.images.iter().find(|i| i.camera == camera).unwrap();
+    let cam = s.camera(camera).unwrap();
+    s.world_from_ego_at(Scene::image_time(f, im)) * cam.ego_from_camera * scene::frames::waymo_camera_from_cv()
+}
+
+#[test]
+fn pandaset_002_counts_path_and_conventions() {
+    let Some(src) = ingest::shared::data_path("pandaset/002") else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let s = run(&src, &tmp.path().join("scene"), Expect::Auto).unwrap();
+    assert_eq!(s.source.kind, scene::SourceKind::Pandaset);
+    let names: Vec<&str> = s.cameras.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["front_camera", "front_left_camera", "front_right_camera"]);
+    assert!(s.cameras.iter().all(|c| (c.width, c.height) == (960, 540)));
+    assert_eq!(s.frames.len(), 80);
+    assert!(s.frames.iter().all(|f| f.images.len() == 3 && f.images.iter().all(|i| i.timestamp_s.is_some())));
+    assert_eq!(s.frames.iter().filter(|f| f.lidar.is_some()).count(), 9);
+    // The README: the ego drives about 21.7 m in 8 s.
+    let d = s.ego_distance_m();
+    assert!((d - 21.7).abs() < 0.2, "ego path {d} m");
+    // The ego's x axis points along its motion, z up, on every frame.
+    for w in s.frames.windows(2) {
+        let step = (w[1].world_from_ego.translation() - w[0].world_from_ego.translation()).truncate();
+        if step.length() > 0.05 {
+            let x = w[0].world_from_ego.transform_vector(DVec3::X).truncate().normalize();
+            assert!(x.dot(step.normalize()) > 0.98, "frame {}: forward {x} vs motion {step}", w[0].index);
+        }
+        assert!(w[0].world_from_ego.transform_vector(DVec3::Z).z > 0.99);
+    }
+    // One track per object: the 39 records marked Moving at frame 0 (the README's count) are 24
+    // objects, 15 of them annotated once per LiDAR; 98 objects over the sequence (the same
+    // union of sibling links computed independently in Python).
+    assert_eq!(s.tracks.len(), 98);
+    let moving0 = s.tracks.iter().filter(|t| t.state_at(0).is_some_and(|st| st.motion == Some(LoggedMotion::Moving)));
+    assert_eq!(moving0.count(), 24);
+    let vehicles = s.tracks.iter().filter(|t| t.class == ObjectClass::Vehicle).count();
+    assert!(vehicles >= 40, "{vehicles} vehicle tracks");
+    for t in &s.tracks {
+        let frames: Vec<usize> = t.states.iter().map(|st| st.frame).collect();
+        assert!(frames.windows(2).all(|w| w[0] < w[1]), "track {} has two states in one frame", t.id);
+    }
+    // Round trip of the frame conventions: the rig and the interpolated ego give back PandaSet's
+    // own camera poses (within 3 cm and 0.3 degrees) on every frame and camera.
+    for name in &names {
+        let logged: Vec<Value> =
+            serde_json::from_slice(&std::fs::read(src.join("camera").join(name).join("poses.json")).unwrap()).unwrap();
+        for (k, v) in logged.iter().enumerate() {
+            let ours = world_from_cv(&s, k, name);
+            let theirs = pose(v);
+            let dt = (ours.translation() - theirs.translation()).length();
+            let r = ours.rotation().transpose() * theirs.rotation();
+            let angle = ((r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(dt < 0.03 && angle < 0.3, "{name} frame {k}: {dt} m, {angle} deg from the logged pose");
+        }
+    }
+    // Every cuboid the annotators took from the front camera (camera_used 1) on every 10th
+    // frame projects its centre inside the front image: all 159 of them.
+    let front = s.camera("front_camera").unwrap();
+    let mut checked = 0;
+    for k in (0..80).step_by(10) {
+        let recs = read_gz_json(&src.join(format!("annotations/cuboids/{k:02}.json.gz")));
+        let cv_from_world = world_from_cv(&s, k, "front_camera").inverse();
+        for r in recs.as_array().unwrap().iter().filter(|r| r["camera_used"].as_i64() == Some(1)) {
+            let p = DVec3::new(
+                r["position.x"].as_f64().unwrap(),
+                r["position.y"].as_f64().unwrap(),
+                r["position.z"].as_f64().unwrap(),
+            );
+            let uv = front.project_cv(cv_from_world.transform_point(p));
+            assert!(uv.is_some_and(|uv| front.contains_pixel(uv)), "frame {k} cuboid {} at {uv:?}", r["uuid"]);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 159);
+}
+
+/// A small PandaSet-like folder: 3 frames, 1 camera of 16x12, one sweep, one moving car.
+fn tiny(dir: &Path) -> PathBuf {
+    let root = dir.join("seq");
+    let cam = root.join("camera/front_camera");
+    std::fs::create_dir_all(&cam).unwrap();
+    std::fs::create_dir_all(root.join("lidar")).unwrap();
+    std::fs::create_dir_all(root.join("annotations/cuboids")).unwrap();
+    let pose = |y: f64, q: [f64; 4]| json!({"position": {"x": 0.0, "y": y, "z": 0.0}, "heading": {"w": q[0], "x": q[1], "y": q[2], "z": q[3]}});
+    // The LiDAR drives along its +y; the camera looks along +y too (OpenCV z = LiDAR +y).
+    let lidar_q = [1.0, 0.0, 0.0, 0.0];
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let cam_q = [s, -s, 0.0, 0.0]; // world_from_cv: cv z -> world +y, cv y -> world -z
+    let write = |p: PathBuf, v: Value| std::fs::write(p, serde_json::to_vec(&v).unwrap()).unwrap();
+    write(root.join("lidar/poses.json"), json!([pose(0.0, lidar_q), pose(1.0, lidar_q), pose(2.0, lidar_q)]));
+    write(root.join("lidar/timestamps.json"), json!([100.0, 100.1, 100.2]));
+    write(cam.join("poses.json"), json!([pose(0.0, cam_q), pose(1.0, cam_q), pose(2.0, cam_q)]));
+    write(cam.join("timestamps.json"), json!([99.95, 100.05, 100.15]));
+    write(cam.join("intrinsics.json"), json!({"fx": 10.0, "fy": 10.0, "cx": 8.0, "cy": 6.0}));
+    for k in 0..3 {
+        image::RgbImage::from_pixel(16, 12, image::Rgb([90, 90, 90])).save(cam.join(format!("{k:02}.jpg"))).unwrap();
+        let car = json!([{"uuid": "a", "label": "Car", "yaw": 0.0, "position.x": 0.0, "position.y": 10.0 + k as f64,
+            "position.z": 0.7, "dimensions.x": 1.9, "dimensions.y": 4.5, "dimensions.z": 1.5,
+            "attributes.object_motion": "Moving", "cuboids.sibling_id": "-", "cuboids.sensor_id": -1, "camera_used": 1}]);
+        write(root.join(format!("annotations/cuboids/{k:02}.json")), car);
+    }
+    let mut sweep = Vec::new();
+    for i in 0..200 {
+        for v in [(i % 20) as f32 * 0.5 - 5.0, (i / 20) as f32, -1.5, 7.0] {
+            sweep.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(root.join("lidar/00.bin"), sweep).unwrap();
+    root
+}
+
+#[test]
+fn tiny_pandaset_folder_converts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tiny(tmp.path());
+    let s = run(&src, &tmp.path().join("out"), Expect::Pandaset).unwrap();
+    assert_eq!((s.frames.len(), s.cameras.len(), s.tracks.len()), (3, 1, 1));
+    let t = &s.tracks[0];
+    assert_eq!(t.class, ObjectClass::Vehicle);
+    // Length along world +y (yaw 0): heading pi/2, moving 1 m per 0.1 s along +y.
+    assert!((t.states[0].heading - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    assert_eq!(t.states[0].size_lwh, [4.5, 1.9, 1.5]);
+    assert!((t.states[1].velocity.unwrap() - DVec3::new(0.0, 10.0, 0.0)).length() < 1e-9);
+    // The ground under the LiDAR (the sweep's points at -1.5 m) puts the ego origin on the road.
+    assert!((s.frames[0].world_from_ego.translation().z + 1.5).abs() < 0.05);
+    let lidar = s.frames[0].lidar.as_ref().expect("frame 0 has its sweep");
+    assert_eq!(lidar.points, 200);
+    assert!(tmp.path().join("out").join(&lidar.path).is_file());
+    assert!(s.frames[1].lidar.is_none());
+}
+
+/// Runs a broken copy and checks the error names `what` and nothing was written.
+fn refused(edit: impl FnOnce(&Path), what: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tiny(tmp.path());
+    edit(&src);
+    let out = tmp.path().join("out");
+    let err = run(&src, &out, Expect::Auto).unwrap_err().to_string();
+    for w in what {
+        assert!(err.contains(w), "`{err}` does not name `{w}`");
+    }
+    assert!(!out.exists(), "output left behind after: {err}");
+    let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name()).collect();
+    assert_eq!(left, [std::ffi::OsString::from("seq")], "stray files after: {err}");
+}
+
+#[test]
+fn broken_pandaset_folders_are_refused_naming_file_and_field() {
+    refused(|d| std::fs::remove_file(d.join("camera/front_camera/01.jpg")).unwrap(), &["01.jpg", "missing"]);
+    refused(
+        |d| std::fs::write(d.join("camera/front_camera/timestamps.json"), "[99.95, 100.05]").unwrap(),
+        &["front_camera/timestamps.json", "2 entries", "3 frames"],
+    );
+    refused(|d| std::fs::write(d.join("lidar/timestamps.json"), "[100.0, 100.1]").unwrap(), &["lidar/timestamps.json"]);
+    let nan_pose = r#"[{"position": {"x": NaN, "y": 0, "z": 0}, "heading": {"w": 1, "x": 0, "y": 0, "z": 0}}]"#;
+    refused(|d| std::fs::write(d.join("lidar/poses.json"), nan_pose).unwrap(), &["lidar/poses.json", "NaN"]);
+    let null_pose = r#"[{"position": {"x": null, "y": 0, "z": 0}, "heading": {"w": 1, "x": 0, "y": 0, "z": 0}},
+        {"position": {"x": 0, "y": 1, "z": 0}, "heading": {"w": 1, "x": 0, "y": 0, "z": 0}},
+        {"position": {"x": 0, "y": 2, "z": 0}, "heading": {"w": 1, "x": 0, "y": 0, "z": 0}}]"#;
+    refused(
+        |d| std::fs::write(d.join("lidar/poses.json"), null_pose).unwrap(),
+        &["lidar/poses.json", "[0].position.x"],
+    );
+    refused(
+        |d| image::RgbImage::new(20, 12).save(d.join("camera/front_camera/02.jpg")).unwrap(),
+        &["02.jpg", "20x12", "16x12"],
+    );
+    refused(
+        |d| {
+            let c = r#"[{"uuid": "a", "label": "Car", "yaw": 0.0, "position.x": null, "position.y": 1, "position.z": 0,
+                "dimensions.x": 1.9, "dimensions.y": 4.5, "dimensions.z": 1.5}]"#;
+            std::fs::write(d.join("annotations/cuboids/01.json"), c).unwrap()
+        },
+        &["cuboids/01.json", "record 0 `position.x`", "null"],
+    );
+    refused(
+        |d| {
+            std::fs::write(d.join("camera/front_camera/intrinsics.json"), r#"{"fx": -3, "fy": 10, "cx": 8, "cy": 6}"#)
+                .unwrap()
+        },
+        &["intrinsics.json", "`fx`"],
+    );
+    refused(|d| std::fs::write(d.join("lidar/00.bin"), [0u8; 17]).unwrap(), &["lidar/00.bin", "multiple of 16"]);
+    // The devkit's pickles: a clear pointer to the converter.
+    refused(
+        |d| {
+            for k in 0..3 {
+                let c = d.join(format!("annotations/cuboids/{k:02}.json"));
+                std::fs::rename(&c, c.with_extension("pkl.gz")).unwrap();
+            }
+        },
+        &["pickles", ingest::pandaset::CONVERTER],
+    );
+}
+
+#[test]
+fn sibling_annotations_are_one_track() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tiny(tmp.path());
+    // Frame 1 holds the car twice (once per LiDAR), frame 2 only the second sensor's record.
+    let rec = |uuid: &str, sib: &str, sensor: i64, y: f64| {
+        json!({"uuid": uuid, "label": "Car", "yaw": 0.0, "position.x": 0.0, "position.y": y, "position.z": 0.7,
+            "dimensions.x": 1.9, "dimensions.y": 4.5, "dimensions.z": 1.5, "attributes.object_motion": "Moving",
+            "cuboids.sibling_id": sib, "cuboids.sensor_id": sensor})
+    };
+    let write = |k: usize, v: Value| {
+        std::fs::write(src.join(format!("annotations/cuboids/{k:02}.json")), serde_json::to_vec(&v).unwrap()).unwrap()
+    };
+    write(1, json!([rec("b", "a", 1, 11.1), rec("a", "b", 0, 11.0)]));
+    write(2, json!([rec("b", "a", 1, 12.0)]));
+    let s = run(&src, &tmp.path().join("out"), Expect::Auto).unwrap();
+    assert_eq!(s.tracks.len(), 1);
+    let t = &s.tracks[0];
+    assert_eq!(t.id, "a");
+    assert_eq!(t.states.iter().map(|st| st.frame).collect::<Vec<_>>(), [0, 1, 2]);
+    assert_eq!(t.states[1].center.y, 11.0, "the 360-degree sensor's record is kept");
+}
