@@ -6,7 +6,8 @@ carla-gs itself reads, so the two trainers start from the same place:
 
 * views: the ingested scene's `scene.json` (docs/scene-format.md). For every frame and image:
   `camera_from_world` (OpenCV axes: x right, y down, z forward) = `cv_from_waymo_camera @
-  inverse(ego_from_camera) @ inverse(world_from_ego)` (all 4x4 row-major, `p_target = M p_source`),
+  inverse(ego_from_camera) @ inverse(world_from_ego)` (all 4x4 row-major, `p_target = M p_source`;
+  an image with its own `timestamp_s` uses the ego pose interpolated at that time, as carla-gs does),
   as recon::camera::splat_camera; image size `round(W * scale)` (half away from zero, as Rust's
   f64::round), intrinsics scaled per axis by `w / W`, `h / H`; image loaded as RGB float in 0..1 and
   resized with a triangle (bilinear, support widened when shrinking) filter per channel in float,
@@ -55,6 +56,51 @@ def mat4(m, where):
     return a
 
 
+def quat_from_mat(r):
+    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
+    t = np.trace(r)
+    if t > 0:
+        s = math.sqrt(t + 1.0) * 2
+        q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = math.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k]) * 2
+        q = [0.0] * 4
+        q[0] = (r[k, j] - r[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (r[j, i] + r[i, j]) / s
+        q[1 + k] = (r[k, i] + r[i, k]) / s
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+def mat_from_quat(q):
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def world_from_ego_at(frames, t):
+    """Scene::world_from_ego_at: translation linear, rotation slerped, held outside the log."""
+    times = [float(f["timestamp_s"]) for f in frames]
+    i = sum(1 for x in times if x <= t)
+    if i == 0 or i == len(frames):
+        return mat4(frames[0 if i == 0 else -1]["world_from_ego"], "world_from_ego")
+    a, b = mat4(frames[i - 1]["world_from_ego"], "a"), mat4(frames[i]["world_from_ego"], "b")
+    w = (t - times[i - 1]) / (times[i] - times[i - 1])
+    qa, qb = quat_from_mat(a[:3, :3]), quat_from_mat(b[:3, :3])
+    if qa @ qb < 0:
+        qb = -qb
+    omega = math.acos(min(1.0, abs(float(qa @ qb))))
+    q = qa if omega < 1e-9 else (math.sin((1 - w) * omega) * qa + math.sin(w * omega) * qb) / math.sin(omega)
+    out = np.eye(4)
+    out[:3, :3] = mat_from_quat(q / np.linalg.norm(q))
+    out[:3, 3] = (1 - w) * a[:3, 3] + w * b[:3, 3]
+    return out
+
+
 def load_views(scene_dir, scale, held_out_every):
     """Every image of the scene: dict(frame, camera, path, w, h, K 3x3, viewmat 4x4 camera_from_world, held_out)."""
     scene = json.load(open(os.path.join(scene_dir, "scene.json")))
@@ -69,7 +115,9 @@ def load_views(scene_dir, scale, held_out_every):
             assert all(float(d.get(k, 0.0)) == 0.0 for k in ("k1", "k2", "p1", "p2", "k3")), \
                 f"camera {c['name']} has distortion (carla-gs refuses it too; ingest undistorts)"
             ego_from_camera = mat4(c["ego_from_camera"], f"camera {c['name']} ego_from_camera")
-            viewmat = CV_FROM_WAYMO @ np.linalg.inv(ego_from_camera) @ np.linalg.inv(world_from_ego)
+            # An image with its own time (PandaSet) was taken from the ego's pose at that time.
+            pose = world_from_ego if im.get("timestamp_s") is None else world_from_ego_at(scene["frames"], float(im["timestamp_s"]))
+            viewmat = CV_FROM_WAYMO @ np.linalg.inv(ego_from_camera) @ np.linalg.inv(pose)
             W, H = int(c["width"]), int(c["height"])
             w, h = max(rust_round(W * scale), 1), max(rust_round(H * scale), 1)
             sx, sy = w / W, h / H

@@ -9,6 +9,8 @@
 # A device command may run 10 minutes at most: run one count per call into the same <out dir> outside
 # the carried paths (e.g. out/train, kept while the machine stays warm); the scene and the initial model
 # are reused, and the table lists every count done so far.
+# Any scene works in place of the fox: a folder `ingest` reads, or a scene already at <out dir>/scene
+# (tools/bench/pandaset-side-by-side.sh puts PandaSet 002 with its priors there).
 # Steps: ingest the fox with our binary; write our initial model (`train --stop-after 0`: the random
 # start, background.ply); per iteration count N, train ours (`train --iters N --device cuda`, the
 # schedule is fractions of N) and score it (`eval-recon --json`), then train gsplat from that
@@ -102,8 +104,8 @@ for n in iters:
     lines.append(f"| {n} | ratio ours/gsplat | {o['s'] / q['s']:.2f} | {o['its'] / q['its']:.2f} | {o['n'] / q['n']:.2f} | {o['mem'] / max(q['mem'], 1):.2f} | "
                  f"{o['psnr'] - q['psnr']:+.2f} dB | {o['ssim'] - q['ssim']:+.4f} |")
 if g is not None:
-    lines += ["", f"Fox at scale {g['scale']} ({g['size'][0]}x{g['size'][1]}), {g['train_views']} training / {g['held_out_views']} held-out views, "
-              f"same {g['gaussians_init']:,} initial Gaussians (carla-gs random start). Held-out PSNR/SSIM: ours with its learned sky, "
+    lines += ["", f"{os.path.basename(os.path.dirname(out + '/'))}: scale {g['scale']} ({g['size'][0]}x{g['size'][1]}), {g['train_views']} training / {g['held_out_views']} held-out views, "
+              f"same {g['gaussians_init']:,} initial Gaussians (carla-gs's start). Held-out PSNR/SSIM: ours with its learned sky, "
               "gsplat on black. Peak memory: nvidia-smi memory.used max minus the idle reading before the run (context and allocator reserve included).",
               "", "gsplat side notes:"] + [f"- {x}" for x in g["notes"]]
 open(f"{out}/side-by-side-train.md", "w").write("\n".join(lines) + "\n")

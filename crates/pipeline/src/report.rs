@@ -38,7 +38,7 @@ pub fn held_out_pictures<B: Backend>(
         let logged = image::open(&path)
             .map_err(|e| PipelineError::stage("report", format!("{}: {e}", path.display())))?
             .to_rgb8();
-        let sc = recon::camera::splat_camera(cam, &f.world_from_ego, 1.0)?;
+        let sc = recon::camera::splat_camera(cam, &scene.world_from_ego_of_image(f, img), 1.0)?;
         let d = recon::view::draw(backend, &model, &scene, &sc, f.timestamp_s, Layers::All, &|_| None);
         let (w, h) = (d.width, d.height);
         let mut c = Canvas::new(w * 2, h, [0, 0, 0]);

@@ -17,7 +17,8 @@ use std::path::Path;
 pub struct View {
     pub frame: usize,
     pub camera: String,
-    /// Log time (s) of the frame.
+    /// Log time (s) of the frame: actors are placed where the log boxed them at this frame.
+    /// (The camera's pose is at the image's own time where the scene has one.)
     pub time: f64,
     pub cam: splat::Camera,
     pub targets: Targets,
@@ -78,7 +79,7 @@ pub fn load_views(
     progress.set_length(jobs.len() as u64);
     jobs.par_iter()
         .map(|(f, im, cam)| {
-            let sc = splat_camera(cam, &f.world_from_ego, scale)?;
+            let sc = splat_camera(cam, &scene.world_from_ego_of_image(f, im), scale)?;
             let rgb = load_rgb(&scene_dir.join(&im.path), sc.width, sc.height)?;
             let mut view = View {
                 frame: f.index,

@@ -3,7 +3,8 @@
 //! the OpenCV camera frame) against the depth-derived prior normals under the supervision mask M,
 //! and, on synthetic scenes, against the exact ground truth (under M, and over every surface
 //! pixel); actor-only mask IoU against the ground-truth instances (every actor together, and each
-//! actor alone where it covers at least 50 pixels). Means are over the views that have the value;
+//! actor alone where it covers at least 50 pixels); on real logs, each moving vehicle's silhouette
+//! against its logged box's projected hull (`eval_boxes`). Means are over the views that have the value;
 //! the number of views behind each mean is reported beside it.
 
 use crate::backend::Backend;
@@ -33,6 +34,10 @@ pub struct ViewScore {
     pub actor_iou: Option<f64>,
     /// (track id, IoU) for each actor seen on at least 50 pixels.
     pub per_actor_iou: Vec<(String, f64)>,
+    /// Real logs (no instance masks): (track id, IoU of the actor's silhouette against its
+    /// logged box's hull) per moving vehicle in view (`eval_boxes`).
+    #[serde(default)]
+    pub moving_vehicle_box_iou: Vec<(String, f64)>,
 }
 
 /// A mean and how many values it is over.
@@ -60,6 +65,9 @@ pub struct EvalReport {
     pub normal_gt_all_cos: Option<Mean>,
     pub actor_iou: Option<Mean>,
     pub per_actor_iou: Option<Mean>,
+    /// Mean over (view, moving vehicle) of `ViewScore::moving_vehicle_box_iou`.
+    #[serde(default)]
+    pub moving_vehicle_box_iou: Option<Mean>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -114,6 +122,8 @@ fn score<B: Backend>(
                 s.per_actor_iou.push((actor.track_id.clone(), x));
             }
         }
+    } else {
+        s.moving_vehicle_box_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v);
     }
     Ok(s)
 }
@@ -143,6 +153,7 @@ pub fn evaluate<B: Backend>(
         normal_gt_all_cos: pick(&|s| s.normal_gt_all.map(|x| x.1)),
         actor_iou: pick(&|s| s.actor_iou),
         per_actor_iou: mean(per_view.iter().flat_map(|s| s.per_actor_iou.iter().map(|x| x.1))),
+        moving_vehicle_box_iou: mean(per_view.iter().flat_map(|s| s.moving_vehicle_box_iou.iter().map(|x| x.1))),
         lpips: None,
         per_view,
     })

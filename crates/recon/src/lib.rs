@@ -20,6 +20,7 @@ pub mod densify_rule;
 pub mod device;
 pub mod error;
 pub mod eval;
+pub mod eval_boxes;
 pub mod gt;
 pub mod init;
 pub mod loss;

@@ -131,6 +131,15 @@ impl Scene {
         image.timestamp_s.unwrap_or(frame.timestamp_s)
     }
 
+    /// The ego pose an image was taken from: the frame's own, or the pose at the image's own
+    /// time where it has one.
+    pub fn world_from_ego_of_image(&self, frame: &Frame, image: &ImageRef) -> Transform3 {
+        match image.timestamp_s {
+            Some(t) => self.world_from_ego_at(t),
+            None => frame.world_from_ego,
+        }
+    }
+
     /// The logged ego pose at time `t` (scene clock, s): translation linear and rotation slerped
     /// between the two frames around `t`; outside the log the nearest frame's pose is held.
     /// The identity for a scene without frames.

@@ -14,6 +14,7 @@ pub mod normals;
 pub mod objects;
 pub mod rays;
 pub mod stereo;
+pub mod sweeps;
 
 pub use depth_dir::DepthKind;
 pub use error::PriorError;
@@ -105,10 +106,24 @@ fn frame_depths(
 ) -> Result<HashMap<usize, (Vec<f32>, DepthSource)>, PriorError> {
     let frame = &scene.frames[f];
     let mut out = HashMap::new();
-    let lidar = match &frame.lidar {
-        Some(l) => Some(scene::format::read_lidar(&scene_dir.join(&l.path))?),
-        None => None,
+    let sweeps = sweeps::Sweeps::new(scene_dir, scene);
+    let loaded = if sweeps.any() {
+        Some(
+            sweeps
+                .sources(f)
+                .into_iter()
+                .map(|(k, static_only)| sweeps.load(k, static_only))
+                .collect::<Result<Vec<_>, _>>()?,
+        )
+    } else {
+        None
     };
+    let lidar_of = |cam: &Camera| -> Option<Vec<[f32; 4]>> {
+        let loaded = loaded.as_ref()?;
+        let im = frame.images.iter().find(|im| im.camera == cam.name)?;
+        Some(sweeps.in_image_ego(frame, im, loaded))
+    };
+    let lidar = loaded.as_ref().map(|_| ());
     let mut stereo: HashMap<usize, Vec<f32>> = HashMap::new();
     if lidar.is_none() && (opts.depth_dir.is_none() || opts.depth_kind == DepthKind::Disparity) {
         for p in pairs {
@@ -136,8 +151,9 @@ fn frame_depths(
     for (ci, cam) in scene.cameras.iter().enumerate() {
         let Some(img) = image_path(scene_dir, frame, &cam.name) else { continue };
         let n = cam.width as usize * cam.height as usize;
-        let sparse = lidar.as_ref().map(|pts| lidar_depth::project(cam, pts));
-        let entry = if let Some(pts) = &lidar {
+        let pts = lidar_of(cam);
+        let sparse = pts.as_ref().map(|pts| lidar_depth::project(cam, pts));
+        let entry = if let Some(pts) = &pts {
             (lidar_depth::lidar_depth(cam, pts), DepthSource::Lidar)
         } else if let Some(dir) = &opts.depth_dir {
             let stem = img.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -188,7 +204,9 @@ fn image_priors(
     let pts_ego: Vec<_> = points.iter().flatten().map(|p| ego_from_cv.transform_point(*p)).collect();
     let plane = ground::fit(&pts_ego, ego_from_cv.translation(), image_seed(seed, f, ci));
     let ground = plane.as_ref().map(|p| ground::mask(&points, &ego_from_cv, p)).unwrap_or_else(|| vec![false; w * h]);
-    let object = objects::object_mask(scene, f, cam, &scene.frames[f].world_from_ego);
+    let frame = &scene.frames[f];
+    let pose = frame.images.iter().find(|im| im.camera == cam.name).map(|im| scene.world_from_ego_of_image(frame, im));
+    let object = objects::object_mask(scene, f, cam, &pose.unwrap_or(frame.world_from_ego));
     let mask: Vec<bool> = (0..w * h).map(|i| (ground[i] || object[i]) && depth[i] > 0.0).collect();
     let frac = |m: &[bool]| m.iter().filter(|&&b| b).count() as f64 / (w * h) as f64;
     let files = PriorFiles::for_image(f, &cam.name);

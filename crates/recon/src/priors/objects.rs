@@ -7,7 +7,7 @@ use scene::glam::DVec2;
 use scene::{Camera, ObjectClass, Scene, Transform3};
 
 /// Convex hull (counter-clockwise in pixel coordinates) by the monotone chain.
-fn hull(mut pts: Vec<DVec2>) -> Vec<DVec2> {
+pub fn hull(mut pts: Vec<DVec2>) -> Vec<DVec2> {
     pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
     let mut out: Vec<DVec2> = Vec::new();
@@ -26,7 +26,8 @@ fn hull(mut pts: Vec<DVec2>) -> Vec<DVec2> {
     out
 }
 
-fn fill_hull(poly: &[DVec2], w: usize, h: usize, mask: &mut [bool]) {
+/// Sets the pixels of a `w x h` mask whose centres lie inside the convex polygon `poly`.
+pub fn fill_hull(poly: &[DVec2], w: usize, h: usize, mask: &mut [bool]) {
     if poly.len() < 3 {
         return;
     }
