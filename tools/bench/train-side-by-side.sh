@@ -56,13 +56,13 @@ sample_peak() {
 
 # The scene and the initial model are kept when <out dir> already holds them (runs split over calls).
 [ -f "$out/scene/scene.json" ] || "$bin" ingest "$fox" --out "$out/scene" --force
-python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["scale"]; assert s == float(sys.argv[2]), f"init at scale {s}, asked {sys.argv[2]}"' \
-  "$out/init/model.json" "$scale"
 printf 'checkpoint_interval = 0\n' > "$out/no-checkpoints.toml"
 # TRAIN_TOML (environment): more settings for both trainers (its top-level keys before its sections).
 if [ -n "${TRAIN_TOML:-}" ]; then grep -v '^\s*\(iterations\|scale\)\s*=' "$TRAIN_TOML" >> "$out/no-checkpoints.toml"; fi
 [ -f "$out/init/background.ply" ] || "$bin" train "$out/scene" --out "$out/init" --scale "$scale" --iters 30000 --stop-after 0 \
   --config "$out/no-checkpoints.toml"
+python3 -c 'import json,sys; s=json.load(open(sys.argv[1]))["scale"]; assert s == float(sys.argv[2]), f"init at scale {s}, asked {sys.argv[2]}"' \
+  "$out/init/model.json" "$scale"
 
 for n in $(echo "$iters" | tr ',' ' '); do
   if [ "${ONLY:-}" != gsplat ]; then
