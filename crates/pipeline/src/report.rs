@@ -324,16 +324,17 @@ fn case_section(h: &mut String, name: &str, s: &RunSummary, dir: &Path, assets: 
             let _ = write!(h, "<img src=\"{link}\" alt=\"{f}\" style=\"max-width:49%\">");
         }
     }
-    h.push_str("<h3>Where the adversary was drawn</h3><p class=small>The box at the executed pose projected into the camera (red: box only, green: drawn only, yellow: both) vs the alpha of a render of the adversary alone. Sides the log never saw are missing from its Gaussians, which lowers the IoU when the adversary turns.</p><table><tr><th>t (s)</th><th>camera</th><th>IoU</th><th>box px</th><th>from logged box (m)</th><th>picture</th></tr>");
+    h.push_str("<h3>Where the adversary was drawn</h3><p class=small>The box at the executed pose projected into the camera (red: box only, green: drawn only, yellow: both) vs the alpha of a render of the adversary alone. Sides the log never saw are missing from its Gaussians, which lowers the IoU when the adversary turns.</p><table><tr><th>t (s)</th><th>camera</th><th>IoU (box)</th><th>IoU (vehicle profile)</th><th>box px</th><th>from logged box (m)</th><th>picture</th></tr>");
     for pl in &s.placement {
         let rel = format!("placement/t{:.2}_{}.png", pl.t, pl.camera);
         let link = copy_asset(&dir.join(&rel), assets, &format!("{name}/{rel}"))?;
         let _ = write!(
             h,
-            "<tr><td>{:.2}</td><td>{}</td><td>{:.3}</td><td>{}</td><td>{}</td><td><img src=\"{link}\" alt=\"placement\" style=\"max-width:240px\"></td></tr>",
+            "<tr><td>{:.2}</td><td>{}</td><td>{:.3}</td><td>{}</td><td>{}</td><td>{}</td><td><img src=\"{link}\" alt=\"placement\" style=\"max-width:240px\"></td></tr>",
             pl.t,
             esc(&pl.camera),
             pl.iou,
+            pl.profile_iou.map_or("-".into(), |x| format!("{x:.3}")),
             pl.box_pixels,
             pl.offset_from_log_m.map_or("-".into(), |d| format!("{d:.1}"))
         );

@@ -34,10 +34,10 @@ pub struct ViewScore {
     pub actor_iou: Option<f64>,
     /// (track id, IoU) for each actor seen on at least 50 pixels.
     pub per_actor_iou: Vec<(String, f64)>,
-    /// Real logs (no instance masks): (track id, IoU of the actor's silhouette against its
-    /// logged box's hull) per moving vehicle in view (`eval_boxes`).
+    /// Real logs (no instance masks): per moving vehicle in view, the IoU of its silhouette
+    /// against its logged box's hull and against the vehicle profile (`eval_boxes`).
     #[serde(default)]
-    pub moving_vehicle_box_iou: Vec<(String, f64)>,
+    pub moving_vehicle_iou: Vec<crate::eval_boxes::VehicleIou>,
 }
 
 /// A mean and how many values it is over.
@@ -65,9 +65,12 @@ pub struct EvalReport {
     pub normal_gt_all_cos: Option<Mean>,
     pub actor_iou: Option<Mean>,
     pub per_actor_iou: Option<Mean>,
-    /// Mean over (view, moving vehicle) of `ViewScore::moving_vehicle_box_iou`.
+    /// Means over (view, moving vehicle) of `ViewScore::moving_vehicle_iou`: against the box
+    /// hull, and against the vehicle profile.
     #[serde(default)]
     pub moving_vehicle_box_iou: Option<Mean>,
+    #[serde(default)]
+    pub moving_vehicle_profile_iou: Option<Mean>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -123,7 +126,7 @@ fn score<B: Backend>(
             }
         }
     } else {
-        s.moving_vehicle_box_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v);
+        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v);
     }
     Ok(s)
 }
@@ -153,7 +156,10 @@ pub fn evaluate<B: Backend>(
         normal_gt_all_cos: pick(&|s| s.normal_gt_all.map(|x| x.1)),
         actor_iou: pick(&|s| s.actor_iou),
         per_actor_iou: mean(per_view.iter().flat_map(|s| s.per_actor_iou.iter().map(|x| x.1))),
-        moving_vehicle_box_iou: mean(per_view.iter().flat_map(|s| s.moving_vehicle_box_iou.iter().map(|x| x.1))),
+        moving_vehicle_box_iou: mean(per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().map(|x| x.box_iou))),
+        moving_vehicle_profile_iou: mean(
+            per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().map(|x| x.profile_iou)),
+        ),
         lpips: None,
         per_view,
     })

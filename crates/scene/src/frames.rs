@@ -119,6 +119,37 @@ pub fn heading_in(target_from_source: &Transform3, heading: f64) -> f64 {
     d.y.atan2(d.x)
 }
 
+/// A road vehicle's silhouette as two boxes in its box frame, for judging where a vehicle is
+/// drawn on real images: a car is not its bounding box (the box's hull, seen at an angle, holds
+/// the air over the bonnet and boot and beside the cabin). The lower body is the whole footprint
+/// up to [`PROFILE_BELT`] of the height; the cabin above it spans [`PROFILE_CABIN_X`] of the
+/// length (front, back, as fractions from the centre) and [`PROFILE_CABIN_WIDTH`] of the width.
+/// Returns the eight corners of each, in the box frame.
+pub fn vehicle_profile_corners(size_lwh: [f64; 3]) -> [[DVec3; 8]; 2] {
+    let [l, w, h] = size_lwh;
+    let belt = -h / 2.0 + PROFILE_BELT * h;
+    let sub = |x: (f64, f64), hw: f64, z: (f64, f64)| -> [DVec3; 8] {
+        std::array::from_fn(|i| {
+            DVec3::new(
+                if i & 1 == 0 { x.1 } else { x.0 },
+                if i & 2 == 0 { hw } else { -hw },
+                if i & 4 == 0 { z.1 } else { z.0 },
+            )
+        })
+    };
+    [
+        sub((-l / 2.0, l / 2.0), w / 2.0, (-h / 2.0, belt)),
+        sub((-PROFILE_CABIN_X.1 * l, PROFILE_CABIN_X.0 * l), PROFILE_CABIN_WIDTH * w / 2.0, (belt, h / 2.0)),
+    ]
+}
+
+/// Belt line of [`vehicle_profile_corners`], as a fraction of the height from the bottom.
+pub const PROFILE_BELT: f64 = 0.55;
+/// The cabin's reach from the box centre towards the front and the back, as fractions of the length.
+pub const PROFILE_CABIN_X: (f64, f64) = (0.25, 0.4);
+/// The cabin's width as a fraction of the box's.
+pub const PROFILE_CABIN_WIDTH: f64 = 0.85;
+
 /// The eight corners of a box (length along x, width along y, height along z) in the box frame.
 pub fn box_corners(size_lwh: [f64; 3]) -> [DVec3; 8] {
     let [l, w, h] = size_lwh.map(|v| v / 2.0);

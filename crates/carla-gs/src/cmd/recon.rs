@@ -165,7 +165,8 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     show("Normal Cos MAE vs GT (all)", &r.normal_gt_all_cos);
     show("actor mask IoU", &r.actor_iou);
     show("per-actor mask IoU", &r.per_actor_iou);
-    show("moving-vehicle IoU vs logged box hull", &r.moving_vehicle_box_iou);
+    show("moving-vehicle IoU, box hull", &r.moving_vehicle_box_iou);
+    show("moving-vehicle IoU, profile", &r.moving_vehicle_profile_iou);
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
 }

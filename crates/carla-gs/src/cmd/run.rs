@@ -175,10 +175,11 @@ pub fn print_run(s: &pipeline::run::RunSummary, out: &std::path::Path) {
     );
     for p in &s.placement {
         println!(
-            "placement t={:.2}s {}: IoU {:.3} ({} box px, {:.1} m from the logged box)",
+            "placement t={:.2}s {}: IoU {:.3}, vehicle profile IoU {:.3} ({} box px, {:.1} m from the logged box)",
             p.t,
             p.camera,
             p.iou,
+            p.profile_iou.unwrap_or(f64::NAN),
             p.box_pixels,
             p.offset_from_log_m.unwrap_or(f64::NAN)
         );
