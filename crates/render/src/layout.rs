@@ -1,7 +1,8 @@
 //! Video layouts: which views make up one frame and where they go.
 //! * `single:<CAMERA>`: one camera of the corner case.
-//! * `front3`: the three front cameras side by side (FRONT_LEFT | FRONT | FRONT_RIGHT), like the
-//!   paper's figure; cameras the scene lacks are left out, FRONT is required.
+//! * `front3`: the three front cameras side by side (FRONT_LEFT | FRONT | FRONT_RIGHT, or PandaSet's
+//!   front_left_camera | front_camera | front_right_camera), like the paper's figure; cameras the
+//!   scene lacks are left out, the middle one is required.
 //! * `compare:<CAMERA>`: the logged original | the corner case | a bird's-eye panel (square, the
 //!   views' height) with the ego, the adversary, its paths and the target zone. The panel sits
 //!   beside the views rather than over them so that at small sizes it hides nothing.
@@ -27,8 +28,9 @@ pub enum Tile {
     Bev,
 }
 
-/// The order of the front cameras in `front3`.
-pub const FRONT_THREE: [&str; 3] = ["FRONT_LEFT", "FRONT", "FRONT_RIGHT"];
+/// The order of the front cameras in `front3`, per dataset's naming (Waymo, PandaSet).
+pub const FRONT_THREE: [[&str; 3]; 2] =
+    [["FRONT_LEFT", "FRONT", "FRONT_RIGHT"], ["front_left_camera", "front_camera", "front_right_camera"]];
 
 impl std::str::FromStr for Layout {
     type Err = String;
@@ -63,8 +65,12 @@ impl Layout {
         Ok(match self {
             Layout::Single { camera } => vec![Tile::View { camera: need(camera)?, corner_case: true }],
             Layout::FrontTriple => {
-                need("FRONT")?;
-                FRONT_THREE
+                let three =
+                    FRONT_THREE.iter().find(|t| scene.camera(t[1]).is_some()).ok_or_else(|| RenderError::NoCamera {
+                        camera: "FRONT or front_camera".into(),
+                        available: scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
+                    })?;
+                three
                     .iter()
                     .filter(|c| scene.camera(c).is_some())
                     .map(|c| Tile::View { camera: c.to_string(), corner_case: true })

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Issue 26 item 4: corner cases on the real PandaSet street, rendered from a GPU-trained model. Run on the
+# device machine from the repo root with carried .device-bin/carla-gs and .device-bin/ps002 (see
+# pandaset-side-by-side.sh):
+#   tools/bench/pandaset-cases.sh .device-bin/carla-gs .device-bin/ps002 out/cases "$OUT"
+# Computes the priors, trains configs/real-street-gpu.toml on the GPU at 960x540, then runs one case per
+# showcased behaviour with the planner (the t0 / seed / adversary found by sweeping the scene with
+# `reason`, `simulate` and `eval-cases`; docs/pandaset.md) and renders `compare:front_camera` and `front3`
+# as PNG frames, encoded to MP4 with OpenCV there (the device has no ffmpeg). Into <dest>: one MP4 per
+# case and layout, and cases.tgz (every case's JSON, placement pictures, bird's-eye views, the model record).
+set -euo pipefail
+bin="$1"; scene="$2"; out="$3"; dest="$4"
+mkdir -p "$out"
+if [ ! -f "$out/scene/priors/priors.json" ]; then rm -rf "$out/scene"; cp -r "$scene" "$out/scene"; "$bin" priors "$out/scene"; fi
+[ -f "$out/model/model.json" ] || "$bin" train "$out/scene" --out "$out/model" --config configs/real-street-gpu.toml --device cuda
+run_case() { # name, then run's arguments
+  local name="$1"; shift
+  "$bin" run "$out/scene" --model "$out/model" --out "$out/$name" --layouts compare:front_camera,front3 --png --device cuda "$@" \
+    | grep -v '^\s*$' || true
+}
+run_case braking --behavior sudden_braking --adversary 5efc9139-933d-4339-b584-00054253c4ce --t0 3.6 --ttc 4.0
+run_case cut-in --behavior sudden_cut_in --t0 3.4 --seed 1
+run_case drift --behavior opposing_drift --t0 0 --seed 2
+python3 - "$out" "$dest" <<'PY'
+import cv2, glob, os, sys
+out, dest = sys.argv[1:3]
+for d in sorted(glob.glob(f"{out}/*/videos/*_frames")):
+    case = d.split("/")[-3]; layout = os.path.basename(d)[:-len("_frames")]
+    frames = sorted(glob.glob(f"{d}/*.png"))
+    if not frames: continue
+    h, w = cv2.imread(frames[0]).shape[:2]
+    vw = cv2.VideoWriter(f"{dest}/{case}-{layout}.mp4", cv2.VideoWriter_fourcc(*"mp4v"), 24, (w, h))
+    for f in frames: vw.write(cv2.imread(f))
+    vw.release()
+    print(case, layout, len(frames), "frames", w, "x", h)
+PY
+tar czf "$dest/cases.tgz" -C "$out" --exclude='*_frames' --exclude=scene --exclude='model/*.ply' --exclude='model/actors' \
+  --exclude='model/checkpoint*' braking cut-in drift model/model.json
