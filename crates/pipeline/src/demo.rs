@@ -1,5 +1,5 @@
-//! `carla-gs demo`: everything on embedded defaults, on the CPU, in one command. A small synthetic
-//! street is generated (its seed is chosen so that each showcased behaviour has a physically
+//! `carla-gs demo`: everything on embedded defaults, on the CPU, in one command (or on a real log
+//! with `--input`, `real_log`). A small synthetic street is generated (its seed is chosen so that each showcased behaviour has a physically
 //! valid case), its geometry priors computed, a Street-Gaussians model trained and scored on the
 //! held-out views, one corner case made per showcased behaviour (sudden braking, cut-in,
 //! opposing drift) with the default agent, simulated, exported and rendered, and
@@ -42,6 +42,10 @@ pub struct DemoConfig {
     /// (names and `auto` from `<out>/assets`, filled with the synthetic sedan, van and truck).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub replace: Vec<String>,
+    /// A real log instead of the synthetic street (`real_log`): a folder `ingest` reads or a
+    /// scene directory. The synthetic settings above are then unused.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input: Option<PathBuf>,
 }
 
 impl Default for DemoConfig {
@@ -59,6 +63,7 @@ impl Default for DemoConfig {
             seed: 0,
             render: RenderSettings::default(),
             replace: vec![],
+            input: None,
         }
     }
 }
@@ -149,15 +154,27 @@ pub fn run_demo_on<B: Backend + Clone>(
         preview: false,
     };
 
-    let scene_key = json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
-        "height": cfg.height, "seed": cfg.scene_seed}, "version": 1});
-    stages.cached("synthesise scene", &scene_dir, &scene_key, || {
-        let pb = progress.bar();
-        pb.set_length(cfg.frames as u64);
-        synth::synthesize(&synth_cfg, &scene_dir, &mut |done, _| pb.set_position(done as u64))?;
-        pb.finish_and_clear();
-        Ok(())
-    })?;
+    let scene_key = match &cfg.input {
+        None => json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
+            "height": cfg.height, "seed": cfg.scene_seed}, "version": 1}),
+        Some(input) => json!({"input": std::fs::canonicalize(input).map_err(PipelineError::io(input))?, "version": 1}),
+    };
+    if let Some(input) = &cfg.input {
+        stages.cached("ingest the log", &scene_dir, &scene_key, || {
+            let pb = progress.bar();
+            crate::real_log::build_scene(input, &scene_dir, &pb)?;
+            pb.finish_and_clear();
+            Ok(())
+        })?;
+    } else {
+        stages.cached("synthesise scene", &scene_dir, &scene_key, || {
+            let pb = progress.bar();
+            pb.set_length(cfg.frames as u64);
+            synth::synthesize(&synth_cfg, &scene_dir, &mut |done, _| pb.set_position(done as u64))?;
+            pb.finish_and_clear();
+            Ok(())
+        })?;
+    }
 
     let priors_dir = scene_dir.join(recon::priors::PRIORS_DIR);
     let priors_key = json!({"scene": scene_key, "priors": {"seed": cfg.seed}});
@@ -207,6 +224,11 @@ pub fn run_demo_on<B: Backend + Clone>(
     let recon: recon::eval::EvalReport = scene::format::read_json(&eval_dir.join("eval.json"))?;
 
     let scene = scene::load_scene(&scene_dir)?;
+    let mut render_settings = cfg.render.clone();
+    if cfg.input.is_some() {
+        let front = crate::real_log::front_camera(&scene).unwrap_or_else(|| "FRONT".into());
+        render_settings.layouts = vec![format!("compare:{front}"), "front3".into()];
+    }
     let (mut model, record) = recon::model_io::load_model(&model_dir)?;
     // The replacement showcase compares against the model as trained.
     let trained = if cfg.replace.is_empty() { None } else { Some(model.clone()) };
@@ -247,12 +269,12 @@ pub fn run_demo_on<B: Backend + Clone>(
             seeds_per_t0: 3,
             refine_rounds: 3,
         };
-        let mut key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": cfg.render});
+        let mut key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": render_settings});
         if !cfg.replace.is_empty() {
             key["replace"] = json!(cfg.replace);
         }
         stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
-            let inputs = RunInputs { scene: &scene, model: &model, backend, render: &cfg.render, out: &case_dir };
+            let inputs = RunInputs { scene: &scene, model: &model, backend, render: &render_settings, out: &case_dir };
             let pb = progress.bar();
             run(&inputs, &req, &T0Choice::Search(T0Spec::Every(0.5)), None, &pb)?;
             pb.finish_and_clear();
@@ -269,12 +291,20 @@ pub fn run_demo_on<B: Backend + Clone>(
     let case_dir = first_case.map(|(b, _)| out.join("cases").join(b.as_str()));
     let replace_dir = out.join("replacement");
     let replace_key = json!({"model": train_key, "track": track, "case": case_dir, "version": 2});
-    stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
-        let original = trained.as_ref().unwrap_or(&model);
-        let case = case_dir.as_deref();
-        crate::replace_showcase::showcase(backend, original, &scene, &synth_cfg, &track, case, &replace_dir).map(|_| ())
-    })?;
-    let replacement = scene::format::read_json(&replace_dir.join(crate::replace_showcase::SHOWCASE_FILE)).ok();
+    // The showcase scores the replacement against the synthetic street's exact render of the
+    // vehicle: a real log has none, so it runs on the synthetic street only.
+    if cfg.input.is_none() {
+        stages.cached("vehicle replacement", &replace_dir, &replace_key, || {
+            let original = trained.as_ref().unwrap_or(&model);
+            let case = case_dir.as_deref();
+            crate::replace_showcase::showcase(backend, original, &scene, &synth_cfg, &track, case, &replace_dir)
+                .map(|_| ())
+        })?;
+    }
+    let replacement = match cfg.input {
+        None => scene::format::read_json(&replace_dir.join(crate::replace_showcase::SHOWCASE_FILE)).ok(),
+        Some(_) => None,
+    };
 
     let mut result = DemoResult {
         config: cfg.clone(),

@@ -7,6 +7,7 @@ pub mod case;
 pub mod demo;
 pub mod error;
 pub mod outputs;
+pub mod real_log;
 pub mod replace_check;
 pub mod replace_showcase;
 pub mod report;

@@ -113,20 +113,44 @@ pub fn write_report(r: &DemoResult, out: &Path) -> Result<(), PipelineError> {
     }
     std::fs::create_dir_all(&assets).map_err(PipelineError::io(&assets))?;
     let mut h = String::new();
+    let what = match &r.config.input {
+        Some(input) => format!(
+            "The real log <code>{}</code> (scene {}, {} actors) reconstructed as a Street-Gaussians scene at {} of its \
+             cameras' size with the {} backend",
+            esc(&input.display().to_string()),
+            esc(&r.model.scene_name),
+            r.model.actors.len(),
+            r.model.scale,
+            esc(&r.model.backend)
+        ),
+        None => String::new(),
+    };
     let _ = write!(
         h,
         "<!doctype html><html lang=en><head><meta charset=utf-8><title>carla-gs demo report</title><style>{STYLE}</style></head><body>\
-         <h1>carla-gs demo</h1><p id=check>page self-check: running</p>\
-         <p>A synthetic street ({} frames, {} cameras at {}x{}, seed {}) reconstructed as a Street-Gaussians scene on the CPU, \
-         then one corner case per showcased behaviour with the <b>{}</b> agent, executed with vehicle dynamics and the CARLA PID, \
-         and re-rendered from the ego cameras.</p>",
-        r.config.frames,
-        r.config.cameras,
-        r.config.width,
-        r.config.height,
-        r.config.scene_seed,
-        r.config.agent.as_str()
+         <h1>carla-gs demo</h1><p id=check>page self-check: running</p>"
     );
+    if !what.is_empty() {
+        let _ = write!(
+            h,
+            "<p>{what}, then one corner case per showcased behaviour with the <b>{}</b> agent, executed with vehicle \
+             dynamics and the CARLA PID, and re-rendered from the ego cameras.</p>",
+            r.config.agent.as_str()
+        );
+    } else {
+        let _ = write!(
+            h,
+            "<p>A synthetic street ({} frames, {} cameras at {}x{}, seed {}) reconstructed as a Street-Gaussians scene on the CPU, \
+             then one corner case per showcased behaviour with the <b>{}</b> agent, executed with vehicle dynamics and the CARLA PID, \
+             and re-rendered from the ego cameras.</p>",
+            r.config.frames,
+            r.config.cameras,
+            r.config.width,
+            r.config.height,
+            r.config.scene_seed,
+            r.config.agent.as_str()
+        );
+    }
     timings_section(&mut h, r);
     recon_section(&mut h, r, out, &assets)?;
     tables_section(&mut h, r);

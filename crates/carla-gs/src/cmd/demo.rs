@@ -1,4 +1,5 @@
-//! `carla-gs demo [--out demo-out]`: the whole pipeline on embedded defaults (`pipeline::demo`).
+//! `carla-gs demo [--out demo-out] [--input <log>]`: the whole pipeline on embedded defaults
+//! (`pipeline::demo`), on the synthetic street or on a real log (`pipeline::real_log`).
 
 use super::recon::{open_cuda, Device};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -26,6 +27,11 @@ pub struct Args {
     /// <out>/assets (synth-sedan, synth-van, synth-truck), or auto>. Repeatable.
     #[arg(long = "replace")]
     replace: Vec<String>,
+    /// A real log instead of the synthetic street: a PandaSet sequence (or any folder `ingest`
+    /// reads) or a scene directory. Trained at a quarter of the cameras' size on the CPU, at full
+    /// size with configs/real-street-gpu.toml on `--device cuda`.
+    #[arg(long)]
+    input: Option<PathBuf>,
 }
 
 struct Terminal;
@@ -47,7 +53,17 @@ impl DemoProgress for Terminal {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let mut cfg = DemoConfig::default();
+    let mut cfg = match &a.input {
+        None => DemoConfig::default(),
+        Some(input) => {
+            anyhow::ensure!(
+                input.is_dir(),
+                "--input {}: not a folder (a PandaSet sequence or a scene)",
+                input.display()
+            );
+            pipeline::real_log::config(input, matches!(a.device, Device::Cuda))?
+        }
+    };
     if let Some(n) = a.iters {
         cfg.train.iterations = n;
     }

@@ -1,0 +1,87 @@
+//! `demo --input`: the demo's stages on a real log instead of the synthetic street. The input is a
+//! folder `ingest` reads (PandaSet, KITTI odometry, `transforms.json`) or a scene directory (copied,
+//! without its priors, so the demo never writes into the user's scene). Training follows the device:
+//! on the CPU at a quarter of the cameras' size (PandaSet's 960x540 -> 240x135) with the demo's 1500
+//! iterations; on the GPU at the full size with `configs/real-street-gpu.toml` (embedded here, one
+//! source of truth with the file users pass to `train --config`). Videos show the scene's own front
+//! camera (`compare:<front>` and `front3`), at the training scale.
+
+use crate::demo::DemoConfig;
+use crate::PipelineError;
+use recon::TrainConfig;
+use std::path::Path;
+
+/// The settings file for real streets on the GPU (`configs/real-street-gpu.toml`).
+pub const REAL_STREET_GPU_TOML: &str = include_str!("../../../configs/real-street-gpu.toml");
+/// The CPU's training scale on a real log.
+pub const CPU_SCALE: f64 = 0.25;
+
+/// The demo's settings for the real log at `input`, trained on the GPU when `gpu`.
+pub fn config(input: &Path, gpu: bool) -> Result<DemoConfig, PipelineError> {
+    let mut cfg = DemoConfig { input: Some(input.to_path_buf()), replace: vec![], ..DemoConfig::default() };
+    cfg.train = if gpu {
+        TrainConfig::from_toml(REAL_STREET_GPU_TOML)
+            .map_err(|e| PipelineError::stage("configs/real-street-gpu.toml", e))?
+    } else {
+        TrainConfig { scale: CPU_SCALE, ..cfg.train }
+    };
+    cfg.render.scale = cfg.train.scale;
+    Ok(cfg)
+}
+
+/// The camera `compare:` shows: the scene's front camera by its usual names, else its first.
+pub fn front_camera(scene: &scene::Scene) -> Option<String> {
+    ["FRONT", "front_camera", "LEFT", "CAM0"]
+        .iter()
+        .find(|n| scene.camera(n).is_some())
+        .map(|n| n.to_string())
+        .or_else(|| scene.cameras.first().map(|c| c.name.clone()))
+}
+
+/// Builds `<out>/scene` from the input: a scene directory is copied (its `priors/` left out), any
+/// other folder is ingested.
+pub fn build_scene(input: &Path, scene_dir: &Path, progress: &indicatif::ProgressBar) -> Result<(), PipelineError> {
+    if input.join(scene::format::SCENE_FILE).is_file() {
+        let staged = scene::StagedDir::new(scene_dir, true)?;
+        copy_tree(input, staged.path(), true)?;
+        scene::load_scene(staged.path())?;
+        staged.commit()?;
+        return Ok(());
+    }
+    ingest::ingest(&[input.to_path_buf()], scene_dir, ingest::Expect::Auto, true, progress)
+        .map_err(|e| PipelineError::stage("ingest", e))?;
+    Ok(())
+}
+
+fn copy_tree(src: &Path, dst: &Path, top: bool) -> Result<(), PipelineError> {
+    std::fs::create_dir_all(dst).map_err(PipelineError::io(dst))?;
+    for e in std::fs::read_dir(src).map_err(PipelineError::io(src))? {
+        let e = e.map_err(PipelineError::io(src))?;
+        let name = e.file_name();
+        if top && name == recon::priors::PRIORS_DIR {
+            continue;
+        }
+        let (from, to) = (e.path(), dst.join(&name));
+        if e.file_type().map_err(PipelineError::io(&from))?.is_dir() {
+            copy_tree(&from, &to, false)?;
+        } else {
+            std::fs::copy(&from, &to).map_err(PipelineError::io(&from))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn real_log_settings_follow_the_device() {
+        let cpu = config(Path::new("x"), false).unwrap();
+        assert_eq!((cpu.train.scale, cpu.train.iterations, cpu.render.scale), (CPU_SCALE, 1500, CPU_SCALE));
+        let gpu = config(Path::new("x"), true).unwrap();
+        assert_eq!((gpu.train.scale, gpu.train.iterations), (1.0, 12000));
+        assert_eq!(gpu.train.densify.max_gaussians, 1_200_000);
+        assert!(gpu.replace.is_empty() && gpu.input.as_deref() == Some(Path::new("x")));
+    }
+}
