@@ -186,6 +186,9 @@ fn frame_depths(
     Ok(out)
 }
 
+/// One image's index entry and its files (name, bytes).
+type ImagePriors = (PriorEntry, Vec<(String, Vec<u8>)>);
+
 /// All maps of one image, and its index entry.
 fn image_priors(
     scene: &Scene,
@@ -195,7 +198,7 @@ fn image_priors(
     depth: Vec<f32>,
     source: DepthSource,
     seed: u64,
-) -> (PriorEntry, Vec<(String, Vec<u8>)>) {
+) -> ImagePriors {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let r = rays::Rays::of(cam);
     let normal = normals::normals(&depth, &r);
@@ -247,15 +250,25 @@ pub fn compute_priors(
     tracing::info!(pairs = pairs.len(), frames = scene.frames.len(), "computing priors");
     progress.set_length(scene.frames.iter().map(|f| f.images.len() as u64).sum());
     let mut images = Vec::new();
-    for f in 0..scene.frames.len() {
-        let mut depths = frame_depths(scene_dir, scene, f, opts, &pairs)?;
-        let work: Vec<(usize, Vec<f32>, DepthSource)> =
-            (0..scene.cameras.len()).filter_map(|ci| depths.remove(&ci).map(|(d, s)| (ci, d, s))).collect();
-        let done: Vec<_> = work
-            .into_par_iter()
-            .map(|(ci, d, s)| image_priors(scene, f, ci, &scene.cameras[ci], d, s, opts.seed))
-            .collect();
-        for (entry, files) in done {
+    // Frames go in chunks of about one a core (each frame's cameras run in parallel too), so a
+    // many-core machine is busy while memory holds one chunk's maps; the order of the index and
+    // the files is the frames' order whatever the chunking.
+    let chunk = rayon::current_num_threads().div_ceil(scene.cameras.len().max(1)).max(1);
+    let frames: Vec<usize> = (0..scene.frames.len()).collect();
+    for part in frames.chunks(chunk) {
+        let done: Vec<Vec<ImagePriors>> = part
+            .par_iter()
+            .map(|&f| {
+                let mut depths = frame_depths(scene_dir, scene, f, opts, &pairs)?;
+                let work: Vec<(usize, Vec<f32>, DepthSource)> =
+                    (0..scene.cameras.len()).filter_map(|ci| depths.remove(&ci).map(|(d, s)| (ci, d, s))).collect();
+                Ok(work
+                    .into_par_iter()
+                    .map(|(ci, d, s)| image_priors(scene, f, ci, &scene.cameras[ci], d, s, opts.seed))
+                    .collect())
+            })
+            .collect::<Result<_, PriorError>>()?;
+        for (entry, files) in done.into_iter().flatten() {
             for (name, bytes) in files {
                 let p = staged.path().join(&name);
                 std::fs::write(&p, bytes).map_err(|e| PriorError::io(p, e))?;
