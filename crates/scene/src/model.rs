@@ -144,21 +144,7 @@ impl Scene {
     /// between the two frames around `t`; outside the log the nearest frame's pose is held.
     /// The identity for a scene without frames.
     pub fn world_from_ego_at(&self, t: f64) -> Transform3 {
-        let f = &self.frames;
-        let i = f.partition_point(|fr| fr.timestamp_s <= t);
-        if f.is_empty() {
-            return Transform3::IDENTITY;
-        }
-        if i == 0 {
-            return f[0].world_from_ego;
-        }
-        if i == f.len() {
-            return f[f.len() - 1].world_from_ego;
-        }
-        let (a, b) = (&f[i - 1], &f[i]);
-        let span = b.timestamp_s - a.timestamp_s;
-        let w = if span > 0.0 { (t - a.timestamp_s) / span } else { 0.0 };
-        a.world_from_ego.interpolate(&b.world_from_ego, w)
+        world_from_ego_at(&self.frames, t)
     }
 
     /// Seconds from the first to the last frame.
@@ -181,4 +167,22 @@ impl Scene {
     pub fn tracks_by_class(&self) -> Vec<(ObjectClass, usize)> {
         ObjectClass::ALL.iter().map(|c| (*c, self.tracks.iter().filter(|t| t.class == *c).count())).collect()
     }
+}
+
+/// [`Scene::world_from_ego_at`] over a list of frames (sorted by time).
+pub fn world_from_ego_at(f: &[Frame], t: f64) -> Transform3 {
+    let i = f.partition_point(|fr| fr.timestamp_s <= t);
+    if f.is_empty() {
+        return Transform3::IDENTITY;
+    }
+    if i == 0 {
+        return f[0].world_from_ego;
+    }
+    if i == f.len() {
+        return f[f.len() - 1].world_from_ego;
+    }
+    let (a, b) = (&f[i - 1], &f[i]);
+    let span = b.timestamp_s - a.timestamp_s;
+    let w = if span > 0.0 { (t - a.timestamp_s) / span } else { 0.0 };
+    a.world_from_ego.interpolate(&b.world_from_ego, w)
 }

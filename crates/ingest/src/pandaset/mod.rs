@@ -184,9 +184,9 @@ fn read_camera(dir: &Path, name: &str, frames: &[Frame], lidar_times: &[f64]) ->
             ));
         }
     }
-    let scene_stub = Scene { frames: frames.to_vec(), ..empty_scene() };
-    let estimates: Vec<Transform3> =
-        (0..n).map(|i| scene_stub.world_from_ego_at(times[i]).inverse() * poses[i] * cv_from_waymo_camera()).collect();
+    let estimates: Vec<Transform3> = (0..n)
+        .map(|i| scene::model::world_from_ego_at(frames, times[i]).inverse() * poses[i] * cv_from_waymo_camera())
+        .collect();
     let (ego_from_camera, spread) = rig_mean(&estimates);
     tracing::info!(camera = name, spread_m = spread, "camera rig from the logged camera poses");
     if spread > 0.25 {

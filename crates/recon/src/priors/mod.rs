@@ -103,10 +103,10 @@ fn frame_depths(
     f: usize,
     opts: &PriorOptions,
     pairs: &[StereoPair],
+    sweeps: &sweeps::Sweeps,
 ) -> Result<HashMap<usize, (Vec<f32>, DepthSource)>, PriorError> {
     let frame = &scene.frames[f];
     let mut out = HashMap::new();
-    let sweeps = sweeps::Sweeps::new(scene_dir, scene);
     let loaded = if sweeps.any() {
         Some(
             sweeps
@@ -253,13 +253,14 @@ pub fn compute_priors(
     // Frames go in chunks of about one a core (each frame's cameras run in parallel too), so a
     // many-core machine is busy while memory holds one chunk's maps; the order of the index and
     // the files is the frames' order whatever the chunking.
+    let sweeps = sweeps::Sweeps::new(scene_dir, scene);
     let chunk = rayon::current_num_threads().div_ceil(scene.cameras.len().max(1)).max(1);
     let frames: Vec<usize> = (0..scene.frames.len()).collect();
     for part in frames.chunks(chunk) {
         let done: Vec<Vec<ImagePriors>> = part
             .par_iter()
             .map(|&f| {
-                let mut depths = frame_depths(scene_dir, scene, f, opts, &pairs)?;
+                let mut depths = frame_depths(scene_dir, scene, f, opts, &pairs, &sweeps)?;
                 let work: Vec<(usize, Vec<f32>, DepthSource)> =
                     (0..scene.cameras.len()).filter_map(|ci| depths.remove(&ci).map(|(d, s)| (ci, d, s))).collect();
                 Ok(work
