@@ -6,18 +6,22 @@
 //! the bonnet and boot and beside the cabin: 0.64 to 0.69 for a crisp car seen from behind on
 //! PandaSet 002), so the profile is the reference that a whole, unsmeared car can match. Both
 //! measure what the paper's actor IoU is for: a moving car rendered where the log has it.
+//! The box is taken at the view's own time (`pose::box_pose_at`, as the renderer places it), and
+//! both masks are compared only where no nearer object's box hull covers the view: a car half
+//! hidden behind another was never seen there, so neither its render nor its box is scored there.
 //! A vehicle counts as moving at a frame when the log labels it `Moving` there, or, without labels,
 //! when its speed is above [`MOVING_SPEED`]. Boxes with a corner behind the camera or fewer than
-//! [`MIN_PIXELS`] pixels in the image are skipped.
+//! [`MIN_PIXELS`] visible pixels in the image are skipped.
 
 use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::data::View;
 use crate::metrics::iou;
 use crate::model::SceneModel;
+use crate::pose::{box_pose_at, BoxPose};
 use crate::priors::objects::{fill_hull, hull};
 use crate::view::draw;
-use scene::frames::{box_corners, vehicle_profile_corners, world_from_box};
+use scene::frames::{box_corners, vehicle_profile_corners};
 use scene::glam::{DVec2, DVec3};
 use scene::{LoggedMotion, ObjectClass, Scene, TrackState};
 
@@ -33,12 +37,12 @@ fn moving(s: &TrackState) -> bool {
     }
 }
 
-/// The hull mask of box-frame points `corners` of a state in the view's camera, if every one
-/// is in front.
-fn hull_mask(v: &View, s: &TrackState, corners: &[DVec3]) -> Option<Vec<bool>> {
+/// The hull mask of box-frame points `corners` of a box at `pose` in the view's camera, if every
+/// one is in front.
+fn hull_mask(v: &View, pose: &BoxPose, corners: &[DVec3]) -> Option<Vec<bool>> {
     let c = &v.cam;
     let m = &c.camera_from_world;
-    let world_from_b = world_from_box(s.center, s.heading);
+    let world_from_b = pose.world_from_box();
     let px: Option<Vec<DVec2>> = corners
         .iter()
         .map(|k| {
@@ -53,14 +57,38 @@ fn hull_mask(v: &View, s: &TrackState, corners: &[DVec3]) -> Option<Vec<bool>> {
     Some(mask)
 }
 
-fn box_mask(v: &View, s: &TrackState) -> Option<Vec<bool>> {
-    hull_mask(v, s, &box_corners(s.size_lwh))
+fn box_mask(v: &View, pose: &BoxPose, size_lwh: [f64; 3]) -> Option<Vec<bool>> {
+    hull_mask(v, pose, &box_corners(size_lwh))
 }
 
-fn profile_mask(v: &View, s: &TrackState) -> Option<Vec<bool>> {
-    let [a, b] = vehicle_profile_corners(s.size_lwh);
-    let (a, b) = (hull_mask(v, s, &a)?, hull_mask(v, s, &b)?);
+fn profile_mask(v: &View, pose: &BoxPose, size_lwh: [f64; 3]) -> Option<Vec<bool>> {
+    let [a, b] = vehicle_profile_corners(size_lwh);
+    let (a, b) = (hull_mask(v, pose, &a)?, hull_mask(v, pose, &b)?);
     Some(a.iter().zip(&b).map(|(x, y)| *x || *y).collect())
+}
+
+/// Distance from the view's camera centre to a world point.
+fn camera_distance(v: &View, p: [f64; 3]) -> f64 {
+    let m = &v.cam.camera_from_world;
+    let q: [f64; 3] = std::array::from_fn(|r| m[r][0] * p[0] + m[r][1] * p[1] + m[r][2] * p[2] + m[r][3]);
+    (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+}
+
+/// The pixels of view `v` covered by the box hull of any track (but `except`) whose centre is
+/// nearer to the camera than `distance` at the view's time.
+fn nearer_boxes(v: &View, scene: &Scene, except: &str, distance: f64) -> Vec<bool> {
+    let mut covered = vec![false; v.width() * v.height()];
+    for tr in scene.tracks.iter().filter(|t| t.id != except) {
+        let Some(pose) = box_pose_at(scene, tr, v.time) else { continue };
+        let Some(size) = tr.valid_states().next().map(|s| s.size_lwh) else { continue };
+        if camera_distance(v, pose.center) >= distance {
+            continue;
+        }
+        if let Some(m) = box_mask(v, &pose, size) {
+            covered.iter_mut().zip(&m).for_each(|(c, b)| *c |= *b);
+        }
+    }
+    covered
 }
 
 /// One moving vehicle in one view: its IoU against the box hull and against the profile.
@@ -80,12 +108,22 @@ pub fn moving_vehicle_iou<B: Backend>(backend: &B, model: &SceneModel, scene: &S
             continue;
         }
         let Some(state) = track.state_at(v.frame).filter(|s| moving(s)) else { continue };
-        let (Some(truth), Some(profile)) = (box_mask(v, state), profile_mask(v, state)) else { continue };
+        let Some(pose) = box_pose_at(scene, track, v.time) else { continue };
+        let (Some(mut truth), Some(mut profile)) =
+            (box_mask(v, &pose, state.size_lwh), profile_mask(v, &pose, state.size_lwh))
+        else {
+            continue;
+        };
+        let hidden = nearer_boxes(v, scene, &track.id, camera_distance(v, pose.center));
+        let visible = |m: &mut Vec<bool>| m.iter_mut().zip(&hidden).for_each(|(x, h)| *x &= !*h);
+        visible(&mut truth);
+        visible(&mut profile);
         if truth.iter().filter(|x| **x).count() < MIN_PIXELS {
             continue;
         }
         let alone = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
-        let mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
+        let mut mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
+        visible(&mut mask);
         if let (Some(b), Some(p)) = (iou(&mask, &truth), iou(&mask, &profile)) {
             out.push(VehicleIou { track: actor.track_id.clone(), box_iou: b, profile_iou: p });
         }
@@ -125,19 +163,21 @@ mod tests {
             valid: true,
             motion: Some(LoggedMotion::Moving),
         };
-        let m = box_mask(&v, &s).unwrap();
+        let pose = BoxPose { center: s.center.into(), heading: s.heading };
+        let m = box_mask(&v, &pose, s.size_lwh).unwrap();
         // The rear face spans 2 m x 1.5 m at 8 m: 10 x 7.5 px; the hull (front face too) is
         // larger, the far face at 12 m smaller: between the two.
         let n = m.iter().filter(|x| **x).count();
         assert!((70..=90).contains(&n), "{n} pixels");
         assert!(m[24 * 64 + 32], "the box centre is inside");
         // The profile lies inside the hull and leaves out the air above the bonnet and boot.
-        let p = profile_mask(&v, &s).unwrap();
+        let p = profile_mask(&v, &pose, s.size_lwh).unwrap();
         let np = p.iter().filter(|x| **x).count();
         assert!(p.iter().zip(&m).all(|(a, b)| !a || *b) && np < n && np > n / 2, "{np} of {n}");
         assert!(moving(&s));
         // Behind the camera: no mask.
-        let behind = TrackState { center: DVec3::new(-10.0, 0.0, 0.0), ..s };
-        assert!(box_mask(&v, &behind).is_none());
+        let behind = BoxPose { center: [-10.0, 0.0, 0.0], heading: 0.0 };
+        assert!(box_mask(&v, &behind, s.size_lwh).is_none());
+        assert!((camera_distance(&v, [10.0, 0.0, 0.0]) - 10.0).abs() < 1e-9);
     }
 }

@@ -131,6 +131,16 @@ impl Scene {
         image.timestamp_s.unwrap_or(frame.timestamp_s)
     }
 
+    /// The largest distance (s) between an image's own time and its frame's time (0 where
+    /// images keep their frame's time).
+    pub fn image_time_spread(&self) -> f64 {
+        self.frames
+            .iter()
+            .flat_map(|f| f.images.iter().map(move |i| (Self::image_time(f, i) - f.timestamp_s).abs()))
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max)
+    }
+
     /// The ego pose an image was taken from: the frame's own, or the pose at the image's own
     /// time where it has one.
     pub fn world_from_ego_of_image(&self, frame: &Frame, image: &ImageRef) -> Transform3 {

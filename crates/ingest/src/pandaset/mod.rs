@@ -18,11 +18,13 @@
 //!   translation-averaged `ego_from_world(t_image) * world_from_camera` over all frames; the
 //!   largest deviation of a logged camera centre from the rig's is logged and kept in the scene
 //!   name's log line (a rigid rig gives centimetres).
-//! * **Tracks** from the cuboids (`cuboids`); **LiDAR** sweeps are stored in the ego frame of
-//!   their frame, as the scene format wants.
+//! * **Tracks** from the cuboids (`cuboids`), each box carried from the time the sweep saw it
+//!   (`capture`: read off the cameras' firing times) to its frame's time; **LiDAR** sweeps are
+//!   stored in the ego frame of their frame, as the scene format wants.
 //!
 //! Every check happens before anything is copied; errors name the file and field.
 
+pub mod capture;
 pub mod cuboids;
 pub mod files;
 
@@ -276,7 +278,14 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         .map(|name| read_camera(&cam_root.join(name), name, &frames, &lidar_times))
         .collect::<Result<Vec<_>, _>>()?;
     let cuboid_frames = read_cuboids(dir, n)?;
-    let (tracks, report) = cuboids::tracks(&cuboid_frames, &lidar_times);
+    let axes: Vec<(DVec3, &[f64])> =
+        cams.iter().map(|c| (c.camera.ego_from_camera.transform_vector(DVec3::X), c.times.as_slice())).collect();
+    let clock = capture::CaptureClock::from_cameras(&axes, &lidar_times);
+    tracing::info!(azimuth_deg_offset_ms = ?clock.table(), "LiDAR capture clock from the cameras' firing times");
+    let seen = |k: usize, centre: DVec3| {
+        lidar_times[k] + clock.offset_of(frames[k].world_from_ego.inverse().transform_point(centre))
+    };
+    let (tracks, report) = cuboids::tracks(&cuboid_frames, &lidar_times, &seen);
     tracing::info!(
         records = report.records,
         sibling_duplicates = report.sibling_duplicates,

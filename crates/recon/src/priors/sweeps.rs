@@ -8,7 +8,9 @@
 //!   the [`BORROWED_SWEEPS`] sweeps nearest in time, carried through the world frame: the points
 //!   inside the box of any object that moves during the log (a `Moving` label on any state, or
 //!   its box centre travelling more than [`MOVED_M`]) at the sweep's frame are dropped, since
-//!   that object is elsewhere at the image's time. Parked cars and the street stay.
+//!   that object is elsewhere at the image's time; the box is lengthened by what the object
+//!   covers in a sweep ([`SWEEP_S`]), as the sweep saw it up to that long before or after the
+//!   frame's time. Parked cars and the street stay.
 //!
 //! Points behind what the camera sees from its new position are left to the depth prior's
 //! occlusion filter (`lidar_depth`), as for the frame's own sweep.
@@ -25,6 +27,9 @@ pub const BORROWED_SWEEPS: usize = 3;
 pub const MOVED_M: f64 = 1.0;
 /// Boxes are grown by this factor when points inside them are dropped (label slack).
 pub const BOX_MARGIN: f64 = 1.1;
+/// A sweep's points are taken over this long (s, one turn at 10 Hz) while its frame's boxes
+/// hold one instant: a box's length is grown by the distance its object covers in that time.
+pub const SWEEP_S: f64 = 0.1;
 
 fn moves(t: &Track) -> bool {
     if !matches!(t.class, ObjectClass::Vehicle | ObjectClass::Pedestrian | ObjectClass::Cyclist) {
@@ -89,7 +94,9 @@ impl<'a> Sweeps<'a> {
             .filter_map(|t| t.state_at(k))
             .map(|s| {
                 let box_from_ego = world_from_box(s.center, s.heading).inverse() * frame.world_from_ego;
-                (box_from_ego, s.size_lwh.map(|v| v * BOX_MARGIN / 2.0))
+                let mut half = s.size_lwh.map(|v| v * BOX_MARGIN / 2.0);
+                half[0] += s.velocity.map_or(0.0, |v| v.truncate().length() * SWEEP_S);
+                (box_from_ego, half)
             })
             .collect();
         let kept = pts
