@@ -1,5 +1,6 @@
 //! `carla-gs`: command-line entry point. Parses arguments and calls the crates; no logic here.
-//! Exit codes: 0 success, 2 bad input or failure (the message says which file and field).
+//! Exit codes: 0 done, 2 bad input, refused or failed (the message says which file and field),
+//! 3 no case possible for a well-formed request ([`cmd::NoCase`]; nothing written).
 
 mod cmd;
 
@@ -96,6 +97,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<cmd::NoCase>().is_some() => {
+            eprintln!("no case: {e:#}");
+            ExitCode::from(3)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)

@@ -42,12 +42,16 @@ fn reason_with_adversary_zone_and_ttc() {
             String::from_utf8_lossy(&out.stderr).into_owned(),
         )
     };
-    let (ok, stdout, stderr) = run(&["--zone", "left", "--behavior", "sudden_cut_in"]);
-    assert!(ok, "{stderr}");
+    // No case possible: exit code 3 (not 0, not 2), the reason on stderr, no file.
+    let out = carla_gs(&[&base[..], &["--zone", "left", "--behavior", "sudden_cut_in"]].concat());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
     assert!(
-        stdout
-            .contains("track 1588 cannot perform sudden_cut_in into zone left: sudden_cut_in never aims at zone left"),
-        "{stdout}"
+        stderr.contains(
+            "no case: no feasible adversary for this behaviour at t0 = 2.00 s: track 1588 cannot perform \
+             sudden_cut_in into zone left: sudden_cut_in never aims at zone left"
+        ),
+        "{stderr}"
     );
     assert!(!plan_path.exists());
     let (ok, stdout, stderr) = run(&["--zone", "left", "--behavior", "side_pass", "--ttc", "3.04"]);
@@ -67,21 +71,30 @@ fn reason_with_a_pedestrian_adversary() {
     let tmp = tempfile::tempdir().unwrap();
     let Some(dir) = scene_dir(tmp.path()) else { return };
     let plan_path = tmp.path().join("ped.json");
+    let reason =
+        |extra: &[&str]| carla_gs(&[&["reason", s(&dir), "--t0", "1", "--out", s(&plan_path)][..], extra].concat());
     let run = |extra: &[&str]| {
-        let out = carla_gs(&[&["reason", s(&dir), "--t0", "1", "--out", s(&plan_path)][..], extra].concat());
+        let out = reason(extra);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         String::from_utf8_lossy(&out.stdout).into_owned()
     };
-    let stdout = run(&["--adversary", "2313", "--behavior", "sudden_braking"]);
+    // Refusals are "no case possible": exit code 3 with the reason on stderr.
+    let no_case = |extra: &[&str]| {
+        let out = reason(extra);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(3), "{stderr}");
+        stderr
+    };
+    let stderr = no_case(&["--adversary", "2313", "--behavior", "sudden_braking"]);
     assert!(
-        stdout.contains(
+        stderr.contains(
             "track 2313 cannot perform sudden_braking: it is a pedestrian, and pedestrians can perform step_out only"
         ),
-        "{stdout}"
+        "{stderr}"
     );
     assert!(!plan_path.exists());
-    let stdout = run(&["--adversary", "1588", "--behavior", "step_out"]);
-    assert!(stdout.contains("it is a vehicle, and only pedestrians can perform step_out"), "{stdout}");
+    let stderr = no_case(&["--adversary", "1588", "--behavior", "step_out"]);
+    assert!(stderr.contains("it is a vehicle, and only pedestrians can perform step_out"), "{stderr}");
     let stdout = run(&["--adversary", "2313"]);
     assert!(stdout.contains("planner: pedestrian 2313 -> front zone, step_out"), "{stdout}");
     let plan: scene::Plan = scene::format::read_json(&plan_path).unwrap();

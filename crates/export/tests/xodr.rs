@@ -223,6 +223,15 @@ fn bad_files_and_options_name_what_is_wrong() {
     let bad = XodrOptions { lane_width_m: 0.0, ..XodrOptions::default() };
     let e = build_road_network(&scene, &bad).unwrap_err().to_string();
     assert!(e.contains("lane_width_m"), "{e}");
+    // Issue 28 row 21: finite but absurd widths are outside the documented range too.
+    for (lane, edge) in [(1e300, 0.3), (0.01, 0.3), (3.5, 1e9)] {
+        let bad = XodrOptions { lane_width_m: lane, edge_width_m: edge, ..XodrOptions::default() };
+        let e = build_road_network(&scene, &bad).unwrap_err().to_string();
+        let field = if lane == 3.5 { "edge_width_m" } else { "lane_width_m" };
+        assert!(e.starts_with(&format!("option `{field}`: must be a width from")), "{e}");
+    }
+    let bad = XodrOptions { flat_margin_m: 1e12, ..XodrOptions::default() };
+    assert!(build_road_network(&scene, &bad).unwrap_err().to_string().contains("flat_margin_m"));
     let mut nan_map = curved_map();
     nan_map.road_edges[0].points[1].y = f64::NAN;
     let e = build_road_network(&scene_with(Some(nan_map)), &XodrOptions::default()).unwrap_err().to_string();

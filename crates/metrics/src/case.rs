@@ -5,7 +5,8 @@
 //! * Success: MinTTC < 1 s (both variants reported) **and a physically valid rollout**
 //!   (`executed.validity`: an adversary that lost control, slid at the tyre limit, hit a third
 //!   actor first or left the road is not a successful corner case). The TTC numbers themselves
-//!   are reported for every rollout.
+//!   are reported for every rollout. A file whose values no rollout produces, or whose stored
+//!   validity its steps contradict, is refused first (`plausible`).
 //! * Zone Hit: at the instant of minimum centre distance, the adversary's centre expressed in the
 //!   ego frame **at that instant** lies in the plan's target zone. The paper's variant, which
 //!   rotates by the ego's axes at the first sample instead, is reported as `zone_hit_paper_axes`.
@@ -43,29 +44,22 @@ pub struct CaseMetrics {
     /// The paper's variant: ego axes of the interval's first sample.
     pub zone_hit_paper_axes: bool,
     pub first_contact: Option<Contact>,
-    /// The rollout's physical validity (copied from the executed file).
+    /// The rollout's physical validity (from the executed file, checked against its steps).
     pub validity: Validity,
     pub comfort_executed: Option<Comfort>,
     pub comfort_reference: Option<Comfort>,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MetricsError {
     /// The executed trajectory does not cover the plan's interval with at least two samples.
+    #[error("the executed trajectory does not cover the plan interval [{t0:.3}, {t1:.3}] s")]
     Interval { t0: f64, t1: f64 },
+    /// A value no rollout can produce, or a stored summary its steps contradict
+    /// ([`crate::plausible`]).
+    #[error("`{field}`: {message}")]
+    Implausible { field: String, message: String },
 }
-
-impl std::fmt::Display for MetricsError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            MetricsError::Interval { t0, t1 } => {
-                write!(f, "the executed trajectory does not cover the plan interval [{t0:.3}, {t1:.3}] s")
-            }
-        }
-    }
-}
-
-impl std::error::Error for MetricsError {}
 
 /// Zone test of the adversary centre `adv` against the ego at `ego`, with axes of `axes`.
 fn in_zone(ego: &Pose2, axes: f64, adv: DVec2, zone: Zone, layout: ZoneLayout, l: f64, w: f64) -> (bool, DVec2) {
@@ -73,7 +67,10 @@ fn in_zone(ego: &Pose2, axes: f64, adv: DVec2, zone: Zone, layout: ZoneLayout, l
     (zone_rect(zone, layout, l, w).contains(local), local)
 }
 
+/// Measures `e` after [`crate::plausible::check`]: a file with values no rollout produces, or a
+/// stored validity its steps contradict, is refused rather than measured.
 pub fn evaluate(e: &Executed) -> Result<CaseMetrics, MetricsError> {
+    crate::plausible::check(e)?;
     let (t0, t1) = (e.plan.start_time_s, e.plan.end_time_s());
     let dt = METRIC_DT_S;
     let adv = uniform(&e.adversary_path(), t0, t1, dt);

@@ -157,3 +157,59 @@ fn parallel_motion_never_succeeds() {
     );
     assert!(metrics::evaluate(&e).unwrap().zone_hit);
 }
+
+/// The stopped-car approach of `approaching_a_stopped_car` (a success when untouched).
+fn success_case() -> Executed {
+    let p = plan(Zone::Front, 2.5, |_| (30.0, 0.0));
+    executed(p, |t| Pose2 { t, x: 10.0 * t, y: 0.0, heading: 0.0 }, |t| Pose2 { t, x: 30.0, y: 0.0, heading: 0.0 })
+}
+
+fn refusal(e: &Executed) -> String {
+    match metrics::evaluate(e) {
+        Err(metrics::MetricsError::Implausible { field, message }) => format!("{field}: {message}"),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+}
+
+/// Issue 28 row 18: x = 1e300 (finite, so the file loads) is refused with the step and field
+/// named, not measured as "MinTTC 0 s -> success true" at an infinite distance.
+#[test]
+fn absurd_coordinates_are_refused() {
+    assert!(metrics::evaluate(&success_case()).unwrap().success_box);
+    let mut e = success_case();
+    for s in &mut e.steps {
+        s.x = 1e300;
+    }
+    e.validate().unwrap();
+    let why = refusal(&e);
+    assert!(why.starts_with("steps[0].x: 1e300 m is not finite or beyond"), "{why}");
+    let mut e = success_case();
+    e.steps[4].speed = 5000.0;
+    assert_eq!(refusal(&e), "steps[4].speed: 5000 m/s is not finite or beyond the 100 m/s any road user stays within");
+    let mut e = success_case();
+    e.steps[4].brake = f64::NAN;
+    assert!(refusal(&e).starts_with("steps[4].brake: NaN is not a finite number"));
+}
+
+/// Issue 28 row 19: one step moved 5000 m is refused (the stored validity is not trusted); a
+/// stored validity summary its steps contradict is refused too.
+#[test]
+fn jumps_and_contradicted_validity_are_refused() {
+    let mut e = success_case();
+    e.steps[30].x += 5000.0;
+    let why = refusal(&e);
+    assert!(why.starts_with("steps[30].x: moved 5000.00 m in 0.050 s since steps[29]"), "{why}");
+    // The reference 6 m away all along, yet the file says valid with no tracking error.
+    let mut e = success_case();
+    for s in &mut e.steps {
+        s.ref_y += 6.0;
+    }
+    let why = refusal(&e);
+    assert_eq!(why, "validity.max_tracking_error_m: the file says 0 m, its steps give 6 m");
+    let mut e = success_case();
+    e.steps[10].accel_lat = 8.0;
+    assert!(refusal(&e).starts_with("validity.max_abs_accel_lat: the file says 0 m/s^2, its steps give 8 m/s^2"));
+    let mut e = success_case();
+    e.validity.friction_limit_s = -1.0;
+    assert!(refusal(&e).starts_with("validity.friction_limit_s"));
+}

@@ -14,6 +14,9 @@ use scene::glam::DVec2;
 pub const STEP_M: f64 = 1.0;
 /// Straight extension before the first and after the last point (m).
 pub const EXTEND_M: f64 = 60.0;
+/// Longest path built (m): beyond it [`LanePath::from_points`] gives `None` instead of
+/// allocating ([`crate::budget`] refuses such maps up front).
+pub const MAX_LENGTH_M: f64 = 2.0e6;
 
 /// A smooth reference path along chained lane centrelines.
 #[derive(Clone, Debug)]
@@ -28,7 +31,8 @@ pub struct LanePath {
 }
 
 impl LanePath {
-    /// Resampled every [`STEP_M`], smoothed and extended straight at both ends.
+    /// Resampled every [`STEP_M`], smoothed and extended straight at both ends; `None` for fewer
+    /// than two points or a length outside `[STEP_M, MAX_LENGTH_M]`.
     pub fn from_points(raw: Vec<DVec2>, lane_ids: Vec<i64>) -> Option<LanePath> {
         if raw.len() < 2 {
             return None;
@@ -38,7 +42,7 @@ impl LanePath {
             cum.push(cum[cum.len() - 1] + w[0].distance(w[1]));
         }
         let total = cum[cum.len() - 1];
-        if total < STEP_M {
+        if !(STEP_M..=MAX_LENGTH_M).contains(&total) {
             return None;
         }
         let n = (total / STEP_M).ceil() as usize;

@@ -205,6 +205,7 @@ pub fn describe(
     sentence: &str,
     backend: &mut dyn Backend,
 ) -> Result<Result<(Intent, String), Vec<Violation>>, ReasonError> {
+    crate::budget::check(scene, o)?;
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
     let world = World::new(scene, o.t0, o.radius).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
     Ok(read(scene, &world, o, sentence, backend)?.map(|i| {

@@ -19,7 +19,7 @@ pub const JOIN_M: f64 = 1.0;
 /// Lanes behind the vehicle chained in (m).
 const BEHIND_M: f64 = 20.0;
 /// Most lanes chained into one path.
-const MAX_CHAIN: usize = 60;
+pub const MAX_CHAIN: usize = 60;
 
 fn wrap(a: f64) -> f64 {
     a.sin().atan2(a.cos())

@@ -7,6 +7,7 @@ pub mod agents;
 pub mod backend;
 pub mod baselines;
 pub mod behavior;
+pub mod budget;
 mod chat;
 pub mod clearance;
 pub mod constraints;
@@ -161,6 +162,9 @@ pub enum ReasonError {
     TimeOutsideScene { t0: f64, first: f64, last: f64 },
     #[error("{0}")]
     Options(String),
+    /// An input beyond the limits of [`budget`]: the option or map field and why.
+    #[error("{field}: {message}")]
+    Input { field: String, message: String },
     #[error(transparent)]
     Backend(#[from] backend::BackendError),
 }
@@ -203,15 +207,9 @@ pub(crate) fn make_plan(
 }
 
 /// Runs an agent at t0. Every plan returned passes `Plan::validate`.
+/// Refuses options and maps beyond the limits of [`budget`] first.
 pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome, ReasonError> {
-    if !(o.dt > 0.0 && o.dt.is_finite() && o.radius > 0.0 && o.history_s >= 0.0)
-        || o.ttc_s.is_some_and(|t| !(t.is_finite() && t > 0.0))
-    {
-        return Err(ReasonError::Options(format!(
-            "need dt > 0, radius > 0, history >= 0, TTC > 0 (got {}, {}, {}, {:?})",
-            o.dt, o.radius, o.history_s, o.ttc_s
-        )));
-    }
+    budget::check(scene, o)?;
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
     let world = World::for_options(scene, o).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
     if let Err(reason) = constraints::check(scene, &world, o) {

@@ -4,11 +4,13 @@
 //! camera, the three front cameras, original vs corner case with a bird's-eye inset from `bev`)
 //! and encoded (`encode`: H.264 MP4 through `ffmpeg`, a PNG sequence without it). `placement`
 //! measures where the adversary was drawn against where its box says it is, so every video can
-//! carry a check of its own geometry. See docs/render.md.
+//! carry a check of its own geometry. Image sizes and scales are checked against `budget` before
+//! anything is drawn. See docs/render.md.
 
 pub mod asset;
 pub mod backproject;
 pub mod bev;
+pub mod budget;
 pub mod canvas;
 pub mod encode;
 pub mod error;

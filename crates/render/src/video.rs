@@ -53,13 +53,16 @@ pub fn actor_index(model: &SceneModel, track: &str) -> Result<usize, RenderError
     })
 }
 
-/// The rasterizer camera `name` on the logged ego at time `t`.
+/// The rasterizer camera `name` on the logged ego at time `t`, within [`crate::budget`].
 pub fn camera_at(scene: &Scene, name: &str, t: f64, scale: f64) -> Result<splat::Camera, RenderError> {
     let cam = scene.camera(name).ok_or_else(|| RenderError::NoCamera {
         camera: name.into(),
         available: scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
     })?;
-    Ok(recon::camera::splat_camera(cam, &world_from_ego_at(scene, t), scale)?)
+    crate::budget::check_scale("scale", scale)?;
+    let sc = recon::camera::splat_camera(cam, &world_from_ego_at(scene, t), scale)?;
+    crate::budget::check_size(&format!("camera `{name}` at scale {scale}"), sc.width as u64, sc.height as u64)?;
+    Ok(sc)
 }
 
 /// One corner case ready to draw.

@@ -20,6 +20,8 @@ pub enum SimError {
         "plan: `waypoints[0]`: starts {distance:.2} m from track `{id}`'s logged position at t0 (at most {max} m)"
     )]
     FarFromLog { id: String, distance: f64, max: f64 },
+    #[error("rollout configuration: `{field}`: {message}")]
+    Config { field: String, message: String },
     #[error("rollout: {0}")]
     Track(#[from] TrackError),
     #[error("rollout: {0}")]

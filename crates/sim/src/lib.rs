@@ -7,8 +7,10 @@
 //! validity (`validity`). No CARLA server is needed; users who have one can run the same plans in
 //! CARLA 0.9.16 through a bridge process (`carla`), with the same control law and output.
 //! Pedestrians and cyclists are not cars: they move by their class's model and limits (`vru`).
+//! Step counts and rates are checked against `budget` before a rollout starts.
 
 pub mod actuation;
+pub mod budget;
 pub mod carla;
 pub mod collision;
 pub mod error;

@@ -77,7 +77,8 @@ pub struct Prepared<'a> {
     pub actors: Vec<Replayed>,
 }
 
-/// Checks the plan against the scene and prepares a rollout of it.
+/// Checks the plan against the scene and the configuration against [`crate::budget`] and
+/// prepares a rollout of it.
 pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Prepared<'a>, SimError> {
     plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
     if plan.scene != scene.name {
@@ -112,6 +113,7 @@ pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result
     let start = start_for_path(&points, n_logged, run[0].heading, &cfg.smoothing).map_err(SimError::Reference)?;
     let reference = start.reference;
     let t_start = reference.start_time();
+    crate::budget::check(cfg, t_end - t_start)?;
     let p0 = reference.position(t_start);
     let initial = [p0.x, p0.y, 0.0, start.speed, start.heading, 0.0, 0.0];
     let size = adversary.median_size_lwh();

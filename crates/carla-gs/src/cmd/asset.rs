@@ -69,7 +69,11 @@ pub fn add(a: AssetArgs) -> anyhow::Result<()> {
             .map(|s| s.trim().parse::<f32>())
             .collect::<Result<_, _>>()
             .context("--colour: expected r,g,b")?;
-        anyhow::ensure!(c.len() == 3, "--colour: expected three numbers r,g,b");
+        anyhow::ensure!(
+            c.len() == 3 && c.iter().all(|v| (0.0..=1.0).contains(v)),
+            "--colour: expected three numbers r,g,b in [0, 1], got {}",
+            a.colour
+        );
         let v = pipeline::synth_asset::vehicle_of_kind(&kind, [c[0], c[1], c[2]])?;
         let g = pipeline::synth_asset::vehicle_asset(&v, a.voxel)?;
         let method = format!("{} (voxel {} m)", pipeline::synth_asset::METHOD, a.voxel);

@@ -8,12 +8,18 @@ pub struct Args {
     /// The OpenDRIVE file to write.
     #[arg(long)]
     out: PathBuf,
-    /// Width of every lane (m): WOMD lane centres carry none.
+    /// Width of every lane (m, 0.5 to 20): WOMD lane centres carry none.
     #[arg(long, default_value_t = 3.5)]
     lane_width: f64,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let [lo, hi] = export::xodr::LANE_WIDTH_RANGE_M;
+    anyhow::ensure!(
+        (lo..=hi).contains(&a.lane_width),
+        "--lane-width: must be from {lo} to {hi} m, got {:?}",
+        a.lane_width
+    );
     let scene = scene::load_scene(&a.scene)?;
     let opts = export::XodrOptions { lane_width_m: a.lane_width, ..Default::default() };
     let built = export::write_xodr_file(&a.out, &scene, &opts)?;

@@ -1,4 +1,5 @@
-//! One module per subcommand: argument struct plus a `run` that calls library crates.
+//! One module per subcommand: argument struct plus a `run` that calls library crates, and
+//! [`NoCase`], the outcome that exits with code 3.
 pub mod asset;
 pub mod backend;
 pub mod constraints;
@@ -18,3 +19,17 @@ pub mod run;
 pub mod simulate;
 pub mod splat;
 pub mod synth;
+
+/// A well-formed request for which no case is possible (no vehicle can perform the behaviour,
+/// or an agent's reply stayed invalid without repair): nothing is written and `main` exits with
+/// code 3, not 2 (bad input) or 0 (done).
+#[derive(Debug)]
+pub struct NoCase(pub String);
+
+impl std::fmt::Display for NoCase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NoCase {}

@@ -1,5 +1,6 @@
 //! `carla-gs reason <scene_dir> --t0 <s> --behavior <b|auto> --agent <...> [--adversary <track>]
 //! [--zone <z>] [--ttc <s>] [--protocol ours|paper] [--repair none|planner] --out scenario.json`
+//! Exit code 3 ([`super::NoCase`]) where no plan is possible for a well-formed request.
 use super::constraints::validity_text;
 use anyhow::Context;
 use reason::{Agent, Outcome, ReasonOptions};
@@ -93,7 +94,9 @@ fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str
     }
 }
 
+/// Writes the plan (exit 0), or says why no case is possible ([`super::NoCase`], exit 3).
 pub fn run(a: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(a.t0.is_finite(), "--t0 must be a finite number of seconds, got {}", a.t0);
     let scene = scene::load_scene(&a.scene)?;
     let options = ReasonOptions {
         t0: scene.frames[0].timestamp_s + a.t0,
@@ -125,18 +128,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         AgentKind::Local | AgentKind::Openai => Agent::Llm(backend.as_mut()),
     };
     match reason::reason(&scene, &options, agent).context("reasoning failed")? {
-        Outcome::NoFeasible { reason } => {
-            println!("no feasible adversary for this behaviour at t0 = {:.2} s: {reason}", a.t0);
-            Ok(())
-        }
+        Outcome::NoFeasible { reason } => Err(super::NoCase(format!(
+            "no feasible adversary for this behaviour at t0 = {:.2} s: {reason}; nothing written",
+            a.t0
+        ))
+        .into()),
         Outcome::Rejected { stats, reason } => {
-            println!("no plan (--repair none): {reason}");
             println!(
                 "validity: zone agent {}; trajectory agent {}",
                 validity_text(&stats.zone),
                 validity_text(&stats.trajectory)
             );
-            Ok(())
+            Err(super::NoCase(format!("no plan (--repair none): {reason}; nothing written")).into())
         }
         Outcome::Plan { plan, stats } => {
             scene::format::write_json_pretty(&a.out, &plan)?;

@@ -185,7 +185,8 @@ pub struct RenderArgs {
     /// Move the camera sideways by this many metres (positive: to the ego's left).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     shift_m: f64,
-    /// Image scale (default: the model's training scale).
+    /// Image scale (default: the model's training scale): positive, and the image at most
+    /// `render::budget::MAX_PIXELS`.
     #[arg(long)]
     scale: Option<f64>,
     /// Draw only the tracked actors (over black).
@@ -196,8 +197,21 @@ pub struct RenderArgs {
 }
 
 pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(a.shift_m.is_finite(), "--shift-m must be a finite number of metres, got {}", a.shift_m);
+    if let Some(s) = a.scale {
+        render::budget::check_scale("--scale", s)?;
+    }
     let (model, record) = recon::model_io::load_model(&a.model)?;
+    let scale = a.scale.unwrap_or(record.scale);
+    render::budget::check_scale(&format!("{}: scale", a.model.join("model.json").display()), scale)?;
     let scene = scene::load_scene(&a.scene)?;
+    anyhow::ensure!(
+        record.scene_name == scene.name,
+        "--scene {}: the model was trained on scene {:?}, not {:?}",
+        a.scene.display(),
+        record.scene_name,
+        scene.name
+    );
     let frame = scene
         .frames
         .get(a.frame)
@@ -208,7 +222,9 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     })?;
     let ego_from_shifted = scene::Transform3::from_yaw_translation(0.0, scene::glam::DVec3::new(0.0, a.shift_m, 0.0));
     let world_from_ego = frame.world_from_ego * ego_from_shifted;
-    let sc = recon::camera::splat_camera(cam, &world_from_ego, a.scale.unwrap_or(record.scale))?;
+    let sc = recon::camera::splat_camera(cam, &world_from_ego, scale)?;
+    let what = format!("--camera {} at scale {scale}", a.camera);
+    render::budget::check_size(&what, sc.width as u64, sc.height as u64)?;
     let layers = if a.actors_only { Layers::ActorsOnly } else { Layers::All };
     let bar = count_bar("render");
     let d = match a.device {

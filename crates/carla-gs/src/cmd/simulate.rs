@@ -15,10 +15,11 @@ pub struct Args {
     /// Rollout configuration JSON (vehicle, actuation, tracker); defaults if absent.
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Control period in seconds (the PID's dt).
+    /// Control period in seconds (the PID's dt); at most `sim::budget::MAX_CONTROL_STEPS` steps.
     #[arg(long)]
     control_dt: Option<f64>,
-    /// Also resample the executed trajectory at this video rate (Hz).
+    /// Also resample the executed trajectory at this video rate (Hz); at most
+    /// `sim::budget::MAX_RESAMPLED` samples.
     #[arg(long)]
     fps: Option<f64>,
     #[command(flatten)]
@@ -32,13 +33,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(p) => scene::format::read_json(p)?,
         None => sim::RolloutConfig::default(),
     };
+    // The rollout starts at the adversary's first logged state, at the scene's start at the
+    // earliest: the flags are checked against sim::budget over that span before anything runs.
+    let span = plan.end_time_s() - scene.frames[0].timestamp_s;
     if let Some(dt) = a.control_dt {
-        anyhow::ensure!(dt > 0.0 && dt.is_finite(), "--control-dt must be a positive number of seconds, got {dt}");
+        sim::budget::check_control_dt(dt, span).map_err(|m| anyhow::anyhow!("--control-dt: {m}"))?;
         cfg.tracker.control_dt_s = dt;
         cfg.tracker.max_physics_dt_s = cfg.tracker.max_physics_dt_s.min(dt);
     }
     if let Some(fps) = a.fps {
-        anyhow::ensure!(fps > 0.0 && fps.is_finite(), "--fps must be a positive rate in Hz, got {fps}");
+        sim::budget::check_rate(fps, span).map_err(|m| anyhow::anyhow!("--fps: {m}"))?;
         cfg.resample_hz.push(fps);
     }
     let simulate = a.physics.simulate_fn()?;

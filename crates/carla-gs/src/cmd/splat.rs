@@ -1,7 +1,8 @@
 //! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png> [--device cpu|cuda]` and
 //! `carla-gs bench-splat [--cases NxWxH,... --iters K --devices cpu,cuda] --out <json>`.
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
-//! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far).
+//! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far); its image may
+//! have at most `render::budget::MAX_PIXELS` pixels.
 use anyhow::Context;
 use splat::backward::{backward_into, Gradients, Upstream};
 use splat::render::{render as rasterize, render_into, Context as RenderContext, Features, Image, RenderOptions};
@@ -29,20 +30,26 @@ fn read_camera(path: &PathBuf) -> anyhow::Result<splat::Camera> {
     let cam: splat::Camera =
         serde_json::from_str(&text).with_context(|| format!("{}: not a camera JSON", path.display()))?;
     cam.validate().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let what = format!("{}: width x height", path.display());
+    render::budget::check_size(&what, cam.width as u64, cam.height as u64)?;
     Ok(cam)
 }
 
 pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    let cam = read_camera(&a.camera)?;
     let g = splat::ply::read_ply(&a.model)?;
     g.validate()?;
-    let cam = read_camera(&a.camera)?;
     let bg: Vec<f64> = a
         .background
         .split(',')
         .map(|s| s.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .context("--background: expected r,g,b")?;
-    anyhow::ensure!(bg.len() == 3, "--background: expected three numbers r,g,b");
+    anyhow::ensure!(
+        bg.len() == 3 && bg.iter().all(|c| (0.0..=1.0).contains(c)),
+        "--background: expected three numbers r,g,b in [0, 1], got {}",
+        a.background
+    );
     let opts = RenderOptions { background: [bg[0], bg[1], bg[2]], antialiased: a.antialiased, ..Default::default() };
     let t = Instant::now();
     let img = match a.device {

@@ -18,15 +18,27 @@ pub struct BuiltNetwork {
     pub skipped: Vec<String>,
 }
 
+/// Range of a lane's width (m): from a footpath to a wide multi-vehicle lane, so that a flat
+/// road holds a sensible number of lanes.
+pub const LANE_WIDTH_RANGE_M: [f64; 2] = [0.5, 20.0];
+/// Range of a road edge's border strip (m).
+pub const EDGE_WIDTH_RANGE_M: [f64; 2] = [0.01, 20.0];
+/// Largest margin of a flat road (m).
+pub const MAX_FLAT_MARGIN_M: f64 = 1000.0;
+
 fn check_options(o: &XodrOptions) -> Result<(), ExportError> {
-    let positive = [("lane_width_m", o.lane_width_m), ("edge_width_m", o.edge_width_m)];
-    for (field, v) in positive {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(ExportError::BadOption { field, message: format!("must be a positive length, got {v}") });
+    let widths =
+        [("lane_width_m", o.lane_width_m, LANE_WIDTH_RANGE_M), ("edge_width_m", o.edge_width_m, EDGE_WIDTH_RANGE_M)];
+    for (field, v, [lo, hi]) in widths {
+        if !(lo..=hi).contains(&v) {
+            return Err(ExportError::BadOption {
+                field,
+                message: format!("must be a width from {lo} to {hi} m, got {v:?}"),
+            });
         }
     }
-    if !(o.flat_margin_m.is_finite() && o.flat_margin_m >= 0.0) {
-        let message = format!("must be a length >= 0, got {}", o.flat_margin_m);
+    if !(0.0..=MAX_FLAT_MARGIN_M).contains(&o.flat_margin_m) {
+        let message = format!("must be a length from 0 to {MAX_FLAT_MARGIN_M} m, got {:?}", o.flat_margin_m);
         return Err(ExportError::BadOption { field: "flat_margin_m", message });
     }
     if !o.origin.is_finite() {

@@ -34,7 +34,7 @@ mod build;
 mod read;
 mod write;
 
-pub use build::{build_road_network, BuiltNetwork};
+pub use build::{build_road_network, BuiltNetwork, EDGE_WIDTH_RANGE_M, LANE_WIDTH_RANGE_M, MAX_FLAT_MARGIN_M};
 pub use read::read_xodr;
 pub use write::write_xodr;
 
@@ -48,11 +48,13 @@ pub const ORIGIN_CODE: &str = "carla_gs.origin";
 /// How to build the network.
 #[derive(Clone, Debug, PartialEq)]
 pub struct XodrOptions {
-    /// Width of every lane written from a lane centre, and of the flat road's lanes (m).
+    /// Width of every lane written from a lane centre, and of the flat road's lanes (m, within
+    /// [`LANE_WIDTH_RANGE_M`]).
     pub lane_width_m: f64,
-    /// Width of the border strip written for each road edge (m).
+    /// Width of the border strip written for each road edge (m, within [`EDGE_WIDTH_RANGE_M`]).
     pub edge_width_m: f64,
-    /// Margin around the scene's motion covered by the flat road of a scene without lanes (m).
+    /// Margin around the scene's motion covered by the flat road of a scene without lanes (m, at
+    /// most [`MAX_FLAT_MARGIN_M`]).
     pub flat_margin_m: f64,
     /// Subtracted from every world coordinate written (m).
     pub origin: DVec3,
