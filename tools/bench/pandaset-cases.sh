@@ -12,6 +12,8 @@ set -euo pipefail
 bin="$1"; scene="$2"; out="$3"; dest="$4"
 mkdir -p "$out"
 if [ ! -f "$out/scene/priors/priors.json" ]; then rm -rf "$out/scene"; cp -r "$scene" "$out/scene"; "$bin" priors "$out/scene"; fi
+# MODEL (environment): an already trained model to use instead of training one into <out>/model.
+[ -n "${MODEL:-}" ] && [ ! -e "$out/model" ] && ln -s "$(cd "$MODEL" && pwd)" "$out/model"
 [ -f "$out/model/model.json" ] || "$bin" train "$out/scene" --out "$out/model" --config configs/real-street-gpu.toml --device cuda
 run_case() { # name, then run's arguments
   local name="$1"; shift
@@ -20,9 +22,11 @@ run_case() { # name, then run's arguments
     --fps "${FPS:-24}" --scale "${SCALE:-1}" "$@" \
     | grep -v '^\s*$' || true
 }
-run_case cut-in --behavior sudden_cut_in --t0 3.4 --seed 1
-run_case drift --behavior opposing_drift --t0 0 --seed 2
-run_case braking --behavior sudden_braking --adversary 5efc9139-933d-4339-b584-00054253c4ce --t0 3.6 --ttc 4.0
+# CASES (environment): which of the cases below to run, e.g. CASES="cut-in braking"; default all.
+want() { [ -z "${CASES:-}" ] || [[ " $CASES " == *" $1 "* ]]; }
+want cut-in && run_case cut-in --behavior sudden_cut_in --t0 3.5 --seed 1
+want braking && run_case braking --behavior sudden_braking --t0 3.0 --seed 3
+want drift && run_case drift --behavior opposing_drift --t0 0 --seed 2
 python3 - "$out" "$dest" <<'PY'
 import cv2, glob, os, sys
 out, dest = sys.argv[1:3]
