@@ -5,6 +5,7 @@
 //! Markdown, CSV and JSON, per-case files and plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
 //! results do not depend on the thread count (every case has its own seed).
 
+pub mod choose;
 pub mod describe;
 pub mod llm_validity;
 pub mod paired;

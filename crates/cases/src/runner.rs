@@ -39,6 +39,9 @@ pub struct CaseConfig {
     /// What a `--describe` sentence was read as, by scene name: that scene's attempts use its
     /// behaviour only and its constraints where `reason` leaves them open.
     pub requests: BTreeMap<String, SceneRequest>,
+    /// The planner agent chooses among its candidates by their rollouts (`choose`); off: its
+    /// first-ranked candidate, as predicted.
+    pub check_rollouts: bool,
 }
 
 /// A sentence's reading in one scene (`reason::intent`): the behaviour, and the adversary, zone
@@ -81,7 +84,8 @@ pub struct Round {
     pub plan: Plan,
     pub metrics: CaseMetrics,
     pub validity: Option<ValidityStats>,
-    /// How this round's plan was made (`agent`, `pre-compensated target`, `next candidate`, `agent with feedback`).
+    /// How this round's plan was made (`agent`, `rollout-checked: ...` for the checked planner,
+    /// `pre-compensated target`, `next candidate`, `agent with feedback`).
     pub how: String,
 }
 
@@ -130,7 +134,7 @@ impl CaseResult {
     }
 }
 
-fn good(m: &CaseMetrics) -> bool {
+pub(crate) fn good(m: &CaseMetrics) -> bool {
     m.zone_hit && m.success_center
 }
 
@@ -140,7 +144,7 @@ fn rank(m: &CaseMetrics) -> (bool, bool, bool, f64) {
 }
 
 /// Total order on [`rank`] (a NaN MinTTC ranks as the worst, never panics).
-fn cmp_rank(a: &CaseMetrics, b: &CaseMetrics) -> std::cmp::Ordering {
+pub(crate) fn cmp_rank(a: &CaseMetrics, b: &CaseMetrics) -> std::cmp::Ordering {
     let (ra, rb) = (rank(a), rank(b));
     let key = |x: f64| if x.is_nan() { f64::NEG_INFINITY } else { x };
     (ra.0, ra.1, ra.2).cmp(&(rb.0, rb.1, rb.2)).then(key(ra.3).total_cmp(&key(rb.3)))
@@ -256,6 +260,13 @@ pub fn run_case(
             Ok(Outcome::Plan { plan, stats }) => (plan, stats),
         };
     let mut how = "agent".to_string();
+    if spec.agent == AgentName::Planner && cfg.check_rollouts {
+        match crate::choose::choose(scene, &o, cfg) {
+            Ok(Some(c)) => (plan, how) = (c.plan, c.how),
+            Ok(None) => {}
+            Err(e) => return fail("simulate", format!("checking the planner's candidates: {e}")),
+        }
+    }
     let mut strategy = 1; // the planner's next refinement strategy
     let mut rounds: Vec<Round> = Vec::new();
     let mut best_exec: Option<Executed> = None;

@@ -44,6 +44,7 @@ fn a_described_pedestrian_steps_out_in_that_scene_only() {
             simulate: Box::new(sim::simulate),
             window: Window::default(),
             requests: read.into_iter().map(|(k, v)| (k, v.request)).collect(),
+            check_rollouts: true,
         },
     };
     let no_backend = |_: AgentName| -> Result<Box<dyn reason::backend::Backend>, String> { Err("none".into()) };

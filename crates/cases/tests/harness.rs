@@ -25,6 +25,7 @@ fn config(out: &Path, simulate: Box<cases::runner::SimulateFn>, plots: bool) -> 
             simulate,
             window: cases::window::Window::default(),
             requests: Default::default(),
+            check_rollouts: true,
         },
     }
 }

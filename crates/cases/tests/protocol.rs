@@ -40,6 +40,7 @@ fn same_attempts_same_window_and_honest_baselines() {
             simulate: Box::new(sim::simulate),
             window: Window { horizon: Horizon::Seconds(horizon), ..Default::default() },
             requests: Default::default(),
+            check_rollouts: true,
         },
     };
     let r = run_eval(&scenes, &cfg, &no_backend, &ProgressBar::hidden()).unwrap();

@@ -160,6 +160,7 @@ pub fn select_case_with(
         // One case is rendered as planned: its own plan end, no continuation after it.
         window: cases::window::Window { horizon: cases::window::Horizon::Plan, ..Default::default() },
         requests: Default::default(),
+        check_rollouts: true,
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;

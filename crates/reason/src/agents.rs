@@ -39,20 +39,24 @@ pub fn auto_behaviours(world: &World) -> Vec<Behavior> {
 
 /// The planner's best candidate for the behaviour (or for every behaviour when `None`).
 pub fn best_candidate(world: &World, o: &ReasonOptions) -> Result<Candidate, String> {
+    ranked_candidates(world, o).map(|mut c| c.swap_remove(0))
+}
+
+/// Every candidate of the planner for the behaviour (or for every behaviour when `None`), best
+/// first (a stable sort by score: equal scores keep the behaviour's own order); `Err` says why
+/// there is none.
+pub fn ranked_candidates(world: &World, o: &ReasonOptions) -> Result<Vec<Candidate>, String> {
     let behaviours: Vec<Behavior> = o.behavior.map_or_else(|| auto_behaviours(world), |b| vec![b]);
     let mut reasons = Vec::new();
-    let mut best: Option<Candidate> = None;
+    let mut all: Vec<Candidate> = Vec::new();
     for b in behaviours {
         match search(world, b, o) {
-            Ok(c) => {
-                if best.as_ref().is_none_or(|x| c[0].score < x.score) {
-                    best = Some(c[0].clone());
-                }
-            }
+            Ok(c) => all.extend(c),
             Err(e) => reasons.push(e),
         }
     }
-    best.ok_or_else(|| match &o.adversary {
+    all.sort_by(|a, b| a.score.total_cmp(&b.score));
+    (!all.is_empty()).then_some(all).ok_or_else(|| match &o.adversary {
         Some(id) => {
             let what = o.behavior.map_or("be the adversary".to_string(), |b| format!("perform {}", b.as_str()));
             let zone = o.zone.map_or(String::new(), |z| format!(" into zone {}", z.as_str()));
@@ -255,16 +259,13 @@ pub fn valid_by_itself(v: &Validity) -> bool {
 /// The planner as an agent.
 pub fn run_planner(world: &World, o: &ReasonOptions) -> Outcome {
     match best_candidate(world, o) {
-        Ok(c) => {
-            let d = decision_of(world, &c);
-            Outcome::Plan {
-                plan: scene::Plan {
-                    path: Some(c.path),
-                    ..crate::make_plan(world, o, &d, c.waypoints.clone(), c.target, "planner")
-                },
-                stats: None,
-            }
-        }
+        Ok(c) => Outcome::Plan { plan: plan_of_candidate(world, o, &c), stats: None },
         Err(reason) => Outcome::NoFeasible { reason },
     }
+}
+
+/// The plan the planner hands over for candidate `c`.
+pub fn plan_of_candidate(world: &World, o: &ReasonOptions, c: &Candidate) -> scene::Plan {
+    let d = decision_of(world, c);
+    scene::Plan { path: Some(c.path), ..crate::make_plan(world, o, &d, c.waypoints.clone(), c.target, "planner") }
 }

@@ -38,6 +38,10 @@ pub struct Args {
     /// Skip the per-case PNG plots.
     #[arg(long)]
     no_plots: bool,
+    /// The planner agent hands over its first-ranked candidate as predicted, instead of the first
+    /// whose rollout is valid, hits its zone and succeeds (`cases::choose`).
+    #[arg(long)]
+    no_rollout_check: bool,
     #[command(flatten)]
     constraints: super::constraints::ConstraintArgs,
     /// Read once per scene, at its first t0; that scene's attempts use the reading's behaviour.
@@ -104,6 +108,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 after_plan: a.after_plan.parse().map_err(anyhow::Error::msg)?,
             },
             requests,
+            check_rollouts: !a.no_rollout_check,
         },
     };
     let llm = a.llm.clone();
