@@ -6,6 +6,7 @@
 //! The kind is detected from the content (`detect`, `folder`) or forced. Output goes to a staging directory that is renamed into place
 //! only when everything converted and validated, so bad input never leaves a partial scene.
 
+pub mod camera_check;
 pub mod detect;
 pub mod error;
 pub mod folder;

@@ -114,6 +114,8 @@ fn camera_of(file: &Path, field: &str, i: &Intr, image: &Path) -> Result<Camera,
             format!("w and h must be positive whole pixels, got {w} x {h}"),
         ));
     }
+    scene::camera::check_camera_size(w.min(u64::MAX as f64) as u64, h.min(u64::MAX as f64) as u64)
+        .map_err(|m| field_err(file, format!("{field}w"), m))?;
     let from_angle = |a: Option<f64>, side: f64| {
         a.filter(|a| *a > 0.0 && *a < std::f64::consts::PI).map(|a| 0.5 * side / (0.5 * a).tan())
     };
@@ -142,6 +144,24 @@ fn camera_of(file: &Path, field: &str, i: &Intr, image: &Path) -> Result<Camera,
         ego_from_camera: Transform3::IDENTITY,
         rolling_shutter: RollingShutter::Unknown,
     })
+}
+
+/// Refuses distortion that makes the undistortion map degenerate, naming the coefficient where
+/// it is written (the frame's own or the file's shared one).
+fn check_distortion_of(file: &Path, field: &str, own: &Intr, cam: &Camera) -> Result<(), IngestError> {
+    let Err(m) = crate::camera_check::check_distortion(&cam.intrinsics, &cam.distortion, cam.width, cam.height) else {
+        return Ok(());
+    };
+    let (name, value) = crate::camera_check::dominant_coefficient(&cam.distortion);
+    let set_here = match name {
+        "k1" => own.k1,
+        "k2" => own.k2,
+        "k3" => own.k3,
+        "p1" => own.p1,
+        _ => own.p2,
+    };
+    let at = if set_here.is_some() { format!("{field}{name}") } else { name.to_string() };
+    Err(field_err(file, at, format!("{name} = {value}: {m}")))
 }
 
 /// Writes one image under `staging`: a byte copy when undistorted, else undistorted JPEG.
@@ -208,6 +228,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
             content(dir.join(&f.file_path), format!("missing (named by `{field}file_path` of {})", file.display()))
         })?;
         let mut cam = camera_of(&file, &field, &f.intr.over(&parsed.intr), &src)?;
+        check_distortion_of(&file, &field, &f.intr, &cam)?;
         let same = |c: &Camera| {
             (c.width, c.height, c.intrinsics, c.distortion) == (cam.width, cam.height, cam.intrinsics, cam.distortion)
         };

@@ -34,7 +34,12 @@ fn sample(src: &[u8], width: usize, height: usize, channels: usize, x: f64, y: f
 /// Where the output pixel `(u, v)`'s centre comes from in the distorted image (continuous
 /// pixel coordinates, corner origin).
 pub fn source_position(k: &Intrinsics, d: &Distortion, u: usize, v: usize) -> DVec2 {
-    let n = DVec2::new((u as f64 + 0.5 - k.cx) / k.fx, (v as f64 + 0.5 - k.cy) / k.fy);
+    source_position_at(k, d, u as f64 + 0.5, v as f64 + 0.5)
+}
+
+/// Where the continuous output position `(x, y)` comes from in the distorted image.
+pub fn source_position_at(k: &Intrinsics, d: &Distortion, x: f64, y: f64) -> DVec2 {
+    let n = DVec2::new((x - k.cx) / k.fx, (y - k.cy) / k.fy);
     let m = d.apply(n);
     DVec2::new(k.fx * m.x + k.cx, k.fy * m.y + k.cy)
 }

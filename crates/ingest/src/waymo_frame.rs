@@ -92,6 +92,12 @@ fn convert_camera(file: &Path, index: usize, k: usize, c: &proto::CameraCalibrat
     if w <= 0 || h <= 0 {
         return Err(invalid(file, index, f("width"), format!("expected positive width and height, got {w}x{h}")));
     }
+    scene::camera::check_camera_size(w as u64, h as u64).map_err(|m| invalid(file, index, f("width"), m))?;
+    let intrinsics = Intrinsics { fx: i[0], fy: i[1], cx: i[2], cy: i[3] };
+    let distortion = Distortion { k1: i[4], k2: i[5], p1: i[6], p2: i[7], k3: i[8] };
+    scene::camera::check_intrinsics(&intrinsics).map_err(|m| invalid(file, index, f("intrinsic"), m))?;
+    crate::camera_check::check_distortion(&intrinsics, &distortion, w as u32, h as u32)
+        .map_err(|m| invalid(file, index, f("intrinsic"), format!("distortion [k1, k2, p1, p2, k3]: {m}")))?;
     let rolling_shutter = match c.rolling_shutter_direction.map(RollingShutterReadOutDirection::try_from) {
         Some(Ok(RollingShutterReadOutDirection::TopToBottom)) => RollingShutter::TopToBottom,
         Some(Ok(RollingShutterReadOutDirection::LeftToRight)) => RollingShutter::LeftToRight,
@@ -104,8 +110,8 @@ fn convert_camera(file: &Path, index: usize, k: usize, c: &proto::CameraCalibrat
         name: name.to_string(),
         width: w as u32,
         height: h as u32,
-        intrinsics: Intrinsics { fx: i[0], fy: i[1], cx: i[2], cy: i[3] },
-        distortion: Distortion { k1: i[4], k2: i[5], p1: i[6], p2: i[7], k3: i[8] },
+        intrinsics,
+        distortion,
         ego_from_camera: transform(file, index, &f("extrinsic"), c.extrinsic.as_ref())?,
         rolling_shutter,
     })

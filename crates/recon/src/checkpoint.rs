@@ -3,6 +3,11 @@
 //! iteration; per-iteration randomness is derived from `(seed, iteration)`, so there is no RNG
 //! state to keep). Layout: `CGSCKPT1`, a little-endian u64 header length, the JSON header, the f64
 //! payload, and a CRC-32C of everything before it. Written to a temporary file and renamed.
+//! The header also names the run ([`RunIdentity`]: the scene and fingerprints of its
+//! `scene.json` and of the settings) so `--resume` can refuse another scene or edited settings.
+//! A checksum only proves the file is as written: loading also checks every size against the
+//! budget (`budget`) and the payload before allocating, and every value for NaN or infinity,
+//! naming the field (`sky_res`, `sets[1].means`).
 
 use crate::densify::Stats;
 use crate::error::ReconError;
@@ -29,6 +34,19 @@ struct Header {
     adam_step: u64,
     sky_res: usize,
     sets: Vec<SetHeader>,
+    /// Absent in checkpoints written before the run was named.
+    #[serde(default)]
+    run: Option<RunIdentity>,
+}
+
+/// What a checkpoint was trained on and with: a resumed run must match it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RunIdentity {
+    pub scene_name: String,
+    /// CRC-32C of the scene's `scene.json` (hex).
+    pub scene_fingerprint: String,
+    /// CRC-32C of the effective settings as TOML (hex).
+    pub config_fingerprint: String,
 }
 
 /// The whole training state.
@@ -54,7 +72,7 @@ fn put_set(out: &mut Vec<u8>, g: &Gaussians) {
     put(out, &g.sh);
 }
 
-pub fn save(path: &Path, st: &TrainState) -> Result<(), ReconError> {
+pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), ReconError> {
     let sets: Vec<SetHeader> = st
         .model
         .sets()
@@ -69,7 +87,13 @@ pub fn save(path: &Path, st: &TrainState) -> Result<(), ReconError> {
             }
         })
         .collect();
-    let header = Header { next_iteration: st.next_iteration, adam_step: st.adam.step, sky_res: st.model.sky.res, sets };
+    let header = Header {
+        next_iteration: st.next_iteration,
+        adam_step: st.adam.step,
+        sky_res: st.model.sky.res,
+        sets,
+        run: Some(run.clone()),
+    };
     let hjson = serde_json::to_vec(&header).map_err(|e| ReconError::Input(e.to_string()))?;
     let mut out = Vec::new();
     out.extend_from_slice(MAGIC);
@@ -123,7 +147,84 @@ impl Reader<'_> {
     }
 }
 
+/// Loads a checkpoint (without the run's identity).
 pub fn load(path: &Path) -> Result<TrainState, ReconError> {
+    Ok(load_run(path)?.0)
+}
+
+/// The values per Gaussian of a set's payload: parameters, Adam m and v, and three statistics.
+fn values_per_gaussian(sh_degree: usize) -> usize {
+    let params = 3 + 3 + 4 + 1 + splat::sh::sh_coeffs(sh_degree) * 3;
+    3 * params + 3
+}
+
+/// Checks every size in the header against the budget and the payload's length (in f64 values)
+/// before anything is allocated.
+fn check_sizes(h: &Header, payload_values: usize) -> Result<(), String> {
+    use crate::budget::{count, MAX_GAUSSIANS, MAX_ITERATIONS, MAX_SKY_RES};
+    count("next_iteration", h.next_iteration, 0, MAX_ITERATIONS)?;
+    if h.adam_step > h.next_iteration as u64 {
+        return Err(format!("`adam_step` {} is past `next_iteration` {}", h.adam_step, h.next_iteration));
+    }
+    count("sky_res", h.sky_res, 1, MAX_SKY_RES)?;
+    let mut need = 3 * 6 * 3 * h.sky_res * h.sky_res;
+    let mut total = 0usize;
+    for (i, s) in h.sets.iter().enumerate() {
+        count(&format!("sets[{i}].len"), s.len, 0, MAX_GAUSSIANS)?;
+        count(&format!("sets[{i}].sh_degree"), s.sh_degree, 0, 3)?;
+        if s.size_lwh.iter().any(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(format!("`sets[{i}].size_lwh` must be three finite lengths, got {:?}", s.size_lwh));
+        }
+        total += s.len;
+        need += s.len * values_per_gaussian(s.sh_degree);
+    }
+    count("sets[..].len (in all)", total, 0, MAX_GAUSSIANS)?;
+    if need != payload_values {
+        return Err(format!("the header's sizes need {need} values, the payload holds {payload_values}"));
+    }
+    Ok(())
+}
+
+/// The first NaN or infinite value of `values`, named `field`.
+fn finite(field: &str, values: &[f64]) -> Result<(), String> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(k) => Err(format!("`{field}`[{k}] is {}, not a finite number", values[k])),
+        None => Ok(()),
+    }
+}
+
+fn finite_set(field: &str, g: &Gaussians) -> Result<(), String> {
+    finite(&format!("{field}.means"), g.means.as_flattened())?;
+    finite(&format!("{field}.log_scales"), g.log_scales.as_flattened())?;
+    finite(&format!("{field}.rotations"), g.rotations.as_flattened())?;
+    finite(&format!("{field}.opacity_logits"), &g.opacity_logits)?;
+    finite(&format!("{field}.sh"), &g.sh)
+}
+
+/// Every value of a loaded state is finite; statistics are non-negative.
+fn check_values(st: &TrainState) -> Result<(), String> {
+    for (i, g) in st.model.sets().enumerate() {
+        finite_set(&format!("sets[{i}]"), g)?;
+        finite_set(&format!("sets[{i}].adam_m"), &st.adam.m[i])?;
+        finite_set(&format!("sets[{i}].adam_v"), &st.adam.v[i])?;
+        let s = &st.stats[i];
+        finite(&format!("sets[{i}].grad_sum"), &s.grad_sum)?;
+        finite(&format!("sets[{i}].max_radius"), &s.max_radius)?;
+    }
+    finite("sky.texels", &st.model.sky.texels)?;
+    finite("sky.adam_m", &st.adam.sky_m)?;
+    finite("sky.adam_v", &st.adam.sky_v)?;
+    let mut ids = std::collections::HashSet::new();
+    for (a, actor) in st.model.actors.iter().enumerate() {
+        if actor.track_id.is_empty() || !ids.insert(actor.track_id.as_str()) {
+            return Err(format!("`sets[{}].track_id` must be a non-empty unique track id", a + 1));
+        }
+    }
+    Ok(())
+}
+
+/// Loads a checkpoint and the run it names (`None` for one written before runs were named).
+pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconError> {
     let bytes = std::fs::read(path).map_err(crate::error::io(path))?;
     let bad = |detail: &str| ReconError::Checkpoint { file: path.to_path_buf(), detail: detail.to_string() };
     if bytes.len() < 20 || &bytes[..8] != MAGIC {
@@ -134,12 +235,21 @@ pub fn load(path: &Path) -> Result<TrainState, ReconError> {
     if crc32c::crc32c(body) != crc {
         return Err(bad("checksum mismatch (truncated or damaged file)"));
     }
-    let hlen = u64::from_le_bytes(body[8..16].try_into().map_err(|_| bad("truncated header"))?) as usize;
+    let hlen = u64::from_le_bytes(body[8..16].try_into().map_err(|_| bad("truncated header"))?);
+    let hlen = usize::try_from(hlen).map_err(|_| bad("header length past the end"))?;
     let hjson = body.get(16..16usize.saturating_add(hlen)).ok_or_else(|| bad("header length past the end"))?;
     let header: Header = serde_json::from_slice(hjson).map_err(|e| bad(&format!("header: {e}")))?;
     if header.sets.is_empty() || header.sets[0].track_id.is_some() {
         return Err(bad("the first set must be the background"));
     }
+    if header.sets[1..].iter().any(|s| s.track_id.is_none()) {
+        return Err(bad("every set after the background must name its track (`track_id`)"));
+    }
+    let payload = body.len() - 16 - hlen;
+    if payload % 8 != 0 {
+        return Err(bad(&format!("the payload is {payload} bytes, not a whole number of f64 values")));
+    }
+    check_sizes(&header, payload / 8).map_err(|e| bad(&e))?;
     let mut r = Reader { bytes: body, pos: 16 + hlen };
     let short = || bad("payload shorter than the header says");
     let (mut sets, mut m, mut v, mut stats) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -147,11 +257,13 @@ pub fn load(path: &Path) -> Result<TrainState, ReconError> {
         sets.push(r.set(h).ok_or_else(short)?);
         m.push(r.set(h).ok_or_else(short)?);
         v.push(r.set(h).ok_or_else(short)?);
-        stats.push(Stats {
-            grad_sum: r.take(h.len).ok_or_else(short)?,
-            seen: r.take(h.len).ok_or_else(short)?.iter().map(|x| *x as u32).collect(),
-            max_radius: r.take(h.len).ok_or_else(short)?,
-        });
+        let grad_sum = r.take(h.len).ok_or_else(short)?;
+        let seen = r.take(h.len).ok_or_else(short)?;
+        if let Some(k) = seen.iter().position(|x| !(x.is_finite() && *x >= 0.0 && *x <= f64::from(u32::MAX))) {
+            return Err(bad(&format!("`sets[{}].seen`[{k}] is {}, not a count", stats.len(), seen[k])));
+        }
+        let seen = seen.iter().map(|x| *x as u32).collect();
+        stats.push(Stats { grad_sum, seen, max_radius: r.take(h.len).ok_or_else(short)? });
     }
     let texels = 6 * header.sky_res * header.sky_res * 3;
     let sky = Sky { res: header.sky_res, texels: r.take(texels).ok_or_else(short)? };
@@ -167,55 +279,15 @@ pub fn load(path: &Path) -> Result<TrainState, ReconError> {
         .zip(it)
         .map(|(h, g)| Actor { track_id: h.track_id.clone().unwrap_or_default(), size_lwh: h.size_lwh, gaussians: g })
         .collect();
-    Ok(TrainState {
+    let st = TrainState {
         next_iteration: header.next_iteration,
         model: SceneModel { background, actors, sky },
         adam: AdamState { step: header.adam_step, m, v, sky_m, sky_v },
         stats,
-    })
+    };
+    check_values(&st).map_err(|e| bad(&e))?;
+    Ok((st, header.run))
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn state() -> TrainState {
-        let cam = splat::Camera::at_origin(8, 8, 8.0);
-        let model = SceneModel {
-            background: splat::random::random_gaussians(7, &cam, 2, 1),
-            actors: vec![Actor {
-                track_id: "car-1".into(),
-                size_lwh: [4.0, 2.0, 1.5],
-                gaussians: splat::random::random_gaussians(3, &cam, 2, 2),
-            }],
-            sky: Sky::new(2, [0.3, 0.4, 0.5]),
-        };
-        let mut adam = AdamState::new(&model);
-        adam.step = 42;
-        adam.m[1].means[2] = [1.0, 2.0, 3.0];
-        let stats = model
-            .sets()
-            .map(|g| Stats { grad_sum: vec![0.5; g.len()], seen: vec![3; g.len()], max_radius: vec![2.0; g.len()] })
-            .collect();
-        TrainState { next_iteration: 17, model, adam, stats }
-    }
-
-    #[test]
-    fn round_trip_and_damage_is_named() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("ckpt.bin");
-        let st = state();
-        save(&p, &st).unwrap();
-        assert_eq!(load(&p).unwrap(), st);
-        let mut bytes = std::fs::read(&p).unwrap();
-        let mid = bytes.len() / 2;
-        bytes[mid] ^= 0x40;
-        std::fs::write(&p, &bytes).unwrap();
-        let err = load(&p).unwrap_err().to_string();
-        assert!(err.contains("ckpt.bin") && err.contains("checksum"), "{err}");
-        std::fs::write(&p, &bytes[..100]).unwrap();
-        assert!(load(&p).unwrap_err().to_string().contains("ckpt.bin"));
-        std::fs::write(&p, b"hello").unwrap();
-        assert!(load(&p).unwrap_err().to_string().contains("magic"));
-    }
-}
+mod tests;

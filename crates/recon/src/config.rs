@@ -193,10 +193,8 @@ impl TrainConfig {
                     .into(),
             );
         }
-        if self.sky_res == 0 {
-            return Err("sky_res must be positive".into());
-        }
-        Ok(())
+        crate::budget::sizes(self)?;
+        crate::budget::rates_and_weights(self)
     }
 
     /// The densification window and opacity-reset period in iterations.
@@ -227,5 +225,25 @@ mod tests {
         let err = TrainConfig::from_toml("[loss]\nnormals = 1\n").unwrap_err();
         assert!(err.contains("normals"), "{err}");
         assert!(TrainConfig::from_toml("scale = 2.0").unwrap_err().contains("scale"));
+    }
+
+    #[test]
+    fn out_of_range_values_are_refused_naming_the_key() {
+        for (text, key) in [
+            ("sky_res = 100000", "`sky_res` must be in 1..=512"),
+            ("iterations = 0", "`iterations`"),
+            ("[lr]\nmeans = nan", "`lr.means` must be a finite number"),
+            ("[lr]\nopacity = inf", "`lr.opacity`"),
+            ("[loss]\nssim = -5", "`loss.ssim` must be a finite number in [0, 100], got -5"),
+            ("[densify]\nmax_gaussians = 1000000000", "`densify.max_gaussians`"),
+            ("[init]\nopacity = 1.5", "`init.opacity`"),
+        ] {
+            let e = TrainConfig::from_toml(text).unwrap_err();
+            assert!(e.contains(key), "{text}: {e}");
+        }
+        for entry in std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../../configs")).unwrap() {
+            let text = std::fs::read_to_string(entry.unwrap().path()).unwrap();
+            TrainConfig::from_toml(&text).unwrap();
+        }
     }
 }

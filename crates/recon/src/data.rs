@@ -40,9 +40,10 @@ pub fn is_held_out(frame: usize, every: usize) -> bool {
     every > 0 && frame.is_multiple_of(every)
 }
 
-/// Loads an image as RGB in 0..1, resized to `width x height` (area-like triangle filter).
-pub fn load_rgb(path: &Path, width: u32, height: u32) -> Result<Vec<[f64; 3]>, ReconError> {
-    let img = image::open(path).map_err(|e| ReconError::Image { file: path.to_path_buf(), detail: e.to_string() })?;
+/// Loads camera `cam`'s image as RGB in 0..1, resized to `width x height` (area-like triangle
+/// filter); an image of another size than the camera's, or a truncated JPEG, is refused.
+pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Result<Vec<[f64; 3]>, ReconError> {
+    let img = crate::image_check::open_camera_image(path, &cam.name, cam.width, cam.height)?;
     let rgb = img.to_rgb32f();
     let rgb = if rgb.dimensions() != (width, height) {
         image::imageops::resize(&rgb, width, height, FilterType::Triangle)
@@ -80,7 +81,7 @@ pub fn load_views(
     jobs.par_iter()
         .map(|(f, im, cam)| {
             let sc = splat_camera(cam, &scene.world_from_ego_of_image(f, im), scale)?;
-            let rgb = load_rgb(&scene_dir.join(&im.path), sc.width, sc.height)?;
+            let rgb = load_rgb(&scene_dir.join(&im.path), cam, sc.width, sc.height)?;
             let mut view = View {
                 frame: f.index,
                 camera: im.camera.clone(),

@@ -10,7 +10,8 @@ use crate::device::DeviceTrainer;
 use crate::error::ReconError;
 use crate::init::{initialise, scene_extent, InitReport};
 use crate::loss::LossParts;
-use crate::model_io::{load_config, write_model, ModelRecord};
+use crate::model_io::{write_model, ModelRecord};
+use crate::resume;
 use crate::train::{StepReport, Trainer};
 use indicatif::ProgressBar;
 use scene::Scene;
@@ -38,6 +39,8 @@ pub struct TrainSummary {
     pub recent_psnr: f64,
     pub views_train: usize,
     pub views_held_out: usize,
+    /// `--resume` of a run that had already finished: nothing was trained or rewritten.
+    pub already_finished: bool,
 }
 
 /// Loads the scene's views at the config's scale.
@@ -53,21 +56,21 @@ pub fn prepare(scene_dir: &Path, cfg: &TrainConfig, priors: &PriorLoader) -> Res
 pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) -> Result<TrainSummary, ReconError> {
     let cfg = req.cfg.clone();
     cfg.validate().map_err(ReconError::Config)?;
-    std::fs::create_dir_all(req.out_dir).map_err(crate::error::io(req.out_dir))?;
     let ckpt_path = req.out_dir.join("checkpoint.bin");
-    if req.resume {
-        let saved = load_config(req.out_dir)?;
-        if saved != cfg {
-            return Err(ReconError::Config(format!(
-                "--resume: the settings differ from those in {} (a resumed run must use the same config)",
-                req.out_dir.join("config.toml").display()
-            )));
-        }
+    let loaded = scene::load_scene(req.scene_dir)?;
+    let run = resume::identity(req.scene_dir, &loaded, &cfg)?;
+    let resumed = match req.resume {
+        true => Some(resume::open(req.out_dir, &cfg, &run, &loaded)?),
+        false => None,
+    };
+    if let Some(st) = resumed.as_ref().filter(|st| st.next_iteration == cfg.iterations) {
+        return Ok(finished(st));
     }
+    std::fs::create_dir_all(req.out_dir).map_err(crate::error::io(req.out_dir))?;
     let (scene, views) = prepare(req.scene_dir, &cfg, req.priors)?;
     let extent = scene_extent(&views);
-    let (state, init): (TrainState, Option<InitReport>) = if req.resume {
-        (checkpoint::load(&ckpt_path)?, None)
+    let (state, init): (TrainState, Option<InitReport>) = if let Some(st) = resumed {
+        (st, None)
     } else {
         let (model, report) =
             initialise(req.scene_dir, &scene, &views, &cfg.init, cfg.sh_degree, cfg.sky_res, cfg.seed)?;
@@ -128,7 +131,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
             tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
         }
         if cfg.checkpoint_interval > 0 && n.is_multiple_of(cfg.checkpoint_interval) && n < end {
-            checkpoint::save(&ckpt_path, trainer.state()?)?;
+            checkpoint::save(&ckpt_path, trainer.state()?, &run)?;
         }
     }
     let seconds = t0.elapsed().as_secs_f64();
@@ -137,7 +140,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
         tracing::info!(seconds = secs, times, "density control on the device");
     }
     let state = trainer.state()?;
-    checkpoint::save(&ckpt_path, state)?;
+    checkpoint::save(&ckpt_path, state, &run)?;
     let done = state.next_iteration;
     let ran = done - start_it;
     record.iterations = done;
@@ -154,7 +157,23 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
         recent_psnr: recent.iter().sum::<f64>() / recent.len().max(1) as f64,
         views_train: views.iter().filter(|v| !v.held_out).count(),
         views_held_out: views.iter().filter(|v| v.held_out).count(),
+        already_finished: false,
     })
+}
+
+/// The summary of a resumed run that had already finished (nothing trained, nothing written).
+fn finished(st: &TrainState) -> TrainSummary {
+    TrainSummary {
+        iterations_done: st.next_iteration,
+        seconds: 0.0,
+        iterations_per_second: 0.0,
+        gaussians: st.model.gaussian_count(),
+        last_loss: LossParts::default(),
+        recent_psnr: 0.0,
+        views_train: 0,
+        views_held_out: 0,
+        already_finished: true,
+    }
 }
 
 /// The loop's trainer: on the host (any backend) or entirely on the GPU.

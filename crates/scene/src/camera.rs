@@ -74,6 +74,43 @@ pub struct Camera {
     pub rolling_shutter: RollingShutter,
 }
 
+/// Most pixels a camera may have: 4096 x 4096 (16.8 Mpx). Driving-log cameras are 0.5-8 Mpx
+/// (Waymo 1920 x 1280, PandaSet 1920 x 1080, 4K 8.3 Mpx); training keeps about 100 bytes per
+/// pixel per view and the priors a few more, so a calibration claiming 100000 x 100000 pixels
+/// would ask for terabytes. Every reader checks a camera against this before allocating.
+pub const MAX_CAMERA_PIXELS: u64 = 4096 * 4096;
+/// Longest side of a camera in pixels (a 16384 x 1024 panorama is within the pixel budget).
+pub const MAX_CAMERA_SIDE: u64 = 16384;
+
+/// `width x height` must have pixels, each side at most [`MAX_CAMERA_SIDE`] and at most
+/// [`MAX_CAMERA_PIXELS`] in all; the message says which limit was passed.
+pub fn check_camera_size(width: u64, height: u64) -> Result<(), String> {
+    let pixels = width.saturating_mul(height);
+    if pixels == 0 {
+        return Err(format!("{width}x{height} has no pixels"));
+    }
+    if width.max(height) > MAX_CAMERA_SIDE {
+        return Err(format!("{width}x{height}: a side longer than the {MAX_CAMERA_SIDE} pixels a camera may have"));
+    }
+    if pixels > MAX_CAMERA_PIXELS {
+        return Err(format!(
+            "{width}x{height} is {pixels} pixels, more than the {MAX_CAMERA_PIXELS} (4096 x 4096) a camera may have"
+        ));
+    }
+    Ok(())
+}
+
+/// Intrinsics must be finite with positive focal lengths.
+pub fn check_intrinsics(k: &Intrinsics) -> Result<(), String> {
+    if [k.fx, k.fy, k.cx, k.cy].iter().any(|v| !v.is_finite()) {
+        return Err(format!("fx, fy, cx, cy must be finite, got {}, {}, {}, {}", k.fx, k.fy, k.cx, k.cy));
+    }
+    if !(k.fx > 0.0 && k.fy > 0.0) {
+        return Err(format!("focal lengths must be positive, got fx = {}, fy = {}", k.fx, k.fy));
+    }
+    Ok(())
+}
+
 /// Points closer than this along the optical axis are treated as behind the camera.
 pub const MIN_DEPTH: f64 = 1e-6;
 
@@ -127,6 +164,19 @@ mod tests {
         // xn = -y/x = -0.05, yn = -z/x = -0.025.
         assert!((uv - DVec2::new(960.0 - 100.0, 640.0 - 50.0)).length() < 1e-9);
         assert!(cam.project_ego(DVec3::new(-5.0, 0.0, 2.0)).is_none());
+    }
+
+    #[test]
+    fn camera_budget() {
+        check_camera_size(1920, 1280).unwrap();
+        check_camera_size(16384, 1024).unwrap();
+        assert!(check_camera_size(100_000, 100_000).unwrap_err().contains("a side longer than the 16384"));
+        assert!(check_camera_size(4097, 4097).unwrap_err().contains("16785409 pixels, more than the 16777216"));
+        assert!(check_camera_size(2147483647, 2147483647).is_err() && check_camera_size(0, 48).is_err());
+        check_intrinsics(&camera().intrinsics).unwrap();
+        let bad = Intrinsics { fx: -1.0, ..camera().intrinsics };
+        assert!(check_intrinsics(&bad).unwrap_err().contains("fx = -1"));
+        assert!(check_intrinsics(&Intrinsics { cy: f64::NAN, ..bad }).unwrap_err().contains("finite"));
     }
 
     #[test]

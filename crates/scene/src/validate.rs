@@ -2,6 +2,7 @@
 //! `("frames[2].timestamp_s", "must be greater than frames[1].timestamp_s (10.2)")`.
 //! With a directory it also checks that referenced images and LiDAR files exist and fit.
 
+use crate::camera::check_camera_size;
 use crate::model::{Scene, SCENE_FORMAT};
 use crate::transform::{Transform3, ORTHONORMAL_TOLERANCE};
 use std::collections::HashSet;
@@ -76,6 +77,9 @@ pub fn validate_scene(scene: &Scene, dir: Option<&Path>) -> Check {
         }
         if c.width == 0 || c.height == 0 {
             return fail(f("width"), "width and height must be positive");
+        }
+        if let Err(m) = check_camera_size(c.width.into(), c.height.into()) {
+            return fail(f("width"), format!("camera {}: {m}", c.name));
         }
         let k = &c.intrinsics;
         finite(&f("intrinsics"), &[k.fx, k.fy, k.cx, k.cy])?;

@@ -33,7 +33,8 @@ pub struct TrainArgs {
     out: PathBuf,
     #[command(flatten)]
     settings: Settings,
-    /// Continue from <out>/checkpoint.bin (same settings required).
+    /// Continue from <out>/checkpoint.bin (same scene and settings required; a finished run is
+    /// reported as finished and left untouched, exit 0).
     #[arg(long)]
     resume: bool,
     #[arg(long, value_enum, default_value = "cpu")]
@@ -114,6 +115,15 @@ fn train_on<B: Backend>(a: TrainArgs, backend: B) -> anyhow::Result<()> {
     };
     let s = recon::session::train(req, backend, &pb)?;
     pb.finish_and_clear();
+    if s.already_finished {
+        println!(
+            "{}: already finished ({} of {} iterations); nothing to resume, nothing rewritten",
+            a.out.display(),
+            s.iterations_done,
+            s.iterations_done
+        );
+        return Ok(());
+    }
     println!(
         "trained {} iterations ({} train / {} held-out views) in {:.1} s ({:.2} it/s): {} Gaussians, loss {:.4}, recent train PSNR {:.2} dB -> {}",
         s.iterations_done,
