@@ -3,7 +3,7 @@
 //! `config.toml` is refused), the scene is the one trained on (its name and the fingerprint of
 //! its `scene.json`), the checkpoint's iteration is within the settings' iterations and every
 //! actor it holds is a track of the scene. A finished run (the checkpoint at the last
-//! iteration) is reported as finished and nothing is rewritten.
+//! iteration, its model.json written) is reported as finished and nothing is rewritten.
 
 use crate::checkpoint::{self, RunIdentity, TrainState};
 use crate::config::TrainConfig;

@@ -63,7 +63,10 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
         true => Some(resume::open(req.out_dir, &cfg, &run, &loaded)?),
         false => None,
     };
-    if let Some(st) = resumed.as_ref().filter(|st| st.next_iteration == cfg.iterations) {
+    // A finished run is left as it is; one killed between its last checkpoint and its
+    // model.json goes on to write the model (no iteration runs).
+    let complete = req.out_dir.join("model.json").is_file();
+    if let Some(st) = resumed.as_ref().filter(|st| st.next_iteration == cfg.iterations && complete) {
         return Ok(finished(st));
     }
     std::fs::create_dir_all(req.out_dir).map_err(crate::error::io(req.out_dir))?;
