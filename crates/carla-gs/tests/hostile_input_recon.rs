@@ -281,4 +281,8 @@ fn resume_checks_scene_settings_and_a_finished_run() {
     assert!(said.contains("already finished (5 of 5 iterations); nothing to resume, nothing rewritten"), "{said}");
     let after: Vec<Vec<u8>> = files.iter().map(|f| std::fs::read(model.join(f)).unwrap()).collect();
     assert!(before == after, "a finished run was rewritten");
+    // Killed between its last checkpoint and model.json: resuming writes the model.
+    std::fs::remove_file(model.join("model.json")).unwrap();
+    assert!(ok(train(&scene, &model, &["--resume"])).contains("trained 5 iterations"));
+    assert!(model.join("model.json").is_file());
 }
