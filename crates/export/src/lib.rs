@@ -19,4 +19,4 @@ pub mod xosc;
 
 pub use error::ExportError;
 pub use xodr::{build_road_network, read_xodr, write_xodr, write_xodr_file, RoadNetwork, XodrOptions};
-pub use xosc::{read_xosc, write_xosc, write_xosc_file, XoscCase, XoscEntity, XoscOptions, XoscVertex};
+pub use xosc::{read_xosc, write_xosc, write_xosc_file, XoscCase, XoscEntity, XoscOptions, XoscVersion, XoscVertex};

@@ -2,7 +2,7 @@
 //! OpenSCENARIO 1.2 XSD (skipped with a message when xmllint or the schema is missing), round
 //! trip of every entity's vertices, the log clock and boxes, and errors on bad input.
 
-use export::xosc::{read_xosc, write_xosc, write_xosc_file, EntityKind, XoscOptions, ADVERSARY, EGO};
+use export::xosc::{read_xosc, write_xosc, write_xosc_file, EntityKind, XoscOptions, XoscVersion, ADVERSARY, EGO};
 use export::ExportError;
 use scene::executed::{ActorInfo, ExecutedStep, Validity, EXECUTED_FORMAT};
 use scene::frames::wrap_angle;
@@ -192,14 +192,23 @@ fn opts(include_others: bool) -> XoscOptions {
     XoscOptions { include_others, date: Some("2025-01-31T12:00:00Z".into()), ..XoscOptions::default() }
 }
 
-fn schema_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/schemas/OpenSCENARIO_1_2.xsd")
+fn schema_path(v: XoscVersion) -> PathBuf {
+    let name = match v {
+        XoscVersion::V1_0 => "OpenSCENARIO_1_0.xsd",
+        XoscVersion::V1_2 => "OpenSCENARIO_1_2.xsd",
+    };
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/schemas").join(name)
 }
 
 /// Validates `text` with xmllint against the OpenSCENARIO 1.2 schema. `false` (after printing
 /// `SKIP: ...`) when xmllint or the schema is not available; panics when the schema rejects it.
 fn validate(text: &str, label: &str) -> bool {
-    let schema = schema_path();
+    validate_as(XoscVersion::V1_2, text, label)
+}
+
+/// [`validate`] against the schema of version `v`.
+fn validate_as(v: XoscVersion, text: &str, label: &str) -> bool {
+    let schema = schema_path(v);
     if !schema.exists() {
         println!("SKIP: schema validation ({label}): {} not found", schema.display());
         return false;
@@ -215,7 +224,7 @@ fn validate(text: &str, label: &str) -> bool {
         }
     };
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "the OpenSCENARIO 1.2 schema rejects the export ({label}):\n{stderr}");
+    assert!(out.status.success(), "the OpenSCENARIO {v:?} schema rejects the export ({label}):\n{stderr}");
     assert!(stderr.contains("validates"), "{stderr}");
     true
 }
@@ -237,6 +246,37 @@ fn export_validates_against_the_schema_with_and_without_others() {
     let text = write_xosc(&scene, &executed, &with_road).unwrap();
     assert!(text.contains("<LogicFile filepath=\"roads/case.xodr\"/>"));
     validate(&text, "road_network");
+}
+
+#[test]
+fn version_1_0_validates_against_its_schema_and_reads_back_the_same_case() {
+    let scene = sample_scene();
+    let executed = sample_executed(&scene);
+    for include_others in [false, true] {
+        let o =
+            XoscOptions { version: XoscVersion::V1_0, road_network: Some("case.xodr".into()), ..opts(include_others) };
+        let text = write_xosc(&scene, &executed, &o).unwrap();
+        assert!(text.contains("revMinor=\"0\"") && !text.contains("TrajectoryRef") && !text.contains("greaterOrEqual"));
+        validate_as(XoscVersion::V1_0, &text, &format!("1.0, include_others={include_others}"));
+        // The 1.2 file of the same case does not pass the 1.0 schema (so the check above can fail).
+        let v12 = write_xosc(
+            &scene,
+            &executed,
+            &XoscOptions { road_network: Some("case.xodr".into()), ..opts(include_others) },
+        )
+        .unwrap();
+        assert!(v12.contains("TrajectoryRef") && v12.contains("greaterOrEqual"));
+        // Both versions read back as the same case on the log clock.
+        let (a, b) = (read_xosc(&text).unwrap(), read_xosc(&v12).unwrap());
+        assert_eq!(a.log_start_time, b.log_start_time);
+        assert_eq!(
+            (a.scene.clone(), a.behavior.clone(), a.adversary_track.clone()),
+            (b.scene, b.behavior, b.adversary_track)
+        );
+        assert_eq!(a.entities, b.entities);
+    }
+    assert_eq!("1.0".parse::<XoscVersion>(), Ok(XoscVersion::V1_0));
+    assert!("1.1".parse::<XoscVersion>().unwrap_err().contains("1.0 or 1.2"));
 }
 
 #[test]

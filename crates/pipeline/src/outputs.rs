@@ -21,8 +21,22 @@ pub fn plots(scene: &Scene, plan: &Plan, executed: &Executed, m: &CaseMetrics, o
     written
 }
 
-/// Writes the case as OpenSCENARIO 1.2 (ego, adversary and the other logged actors).
-pub fn write_xosc(scene: &Scene, executed: &Executed, path: &Path) -> Result<(), PipelineError> {
-    let opts = export::XoscOptions { include_others: true, ..Default::default() };
-    export::write_xosc_file(path, scene, executed, &opts).map_err(|e| PipelineError::stage("export", e))
+/// Writes the case under `out` as `scenario.xosc` (ego, adversary and the other logged actors, in
+/// OpenSCENARIO `version`) with the scene's roads as `scenario.xodr` beside it, named in its
+/// `RoadNetwork`, so a player loads both.
+pub fn write_xosc(
+    scene: &Scene,
+    executed: &Executed,
+    out: &Path,
+    version: export::XoscVersion,
+) -> Result<(), PipelineError> {
+    let stage = |e| PipelineError::stage("export", e);
+    export::write_xodr_file(&out.join("scenario.xodr"), scene, &export::XodrOptions::default()).map_err(stage)?;
+    let opts = export::XoscOptions {
+        include_others: true,
+        version,
+        road_network: Some("scenario.xodr".into()),
+        ..Default::default()
+    };
+    export::write_xosc_file(&out.join("scenario.xosc"), scene, executed, &opts).map_err(stage)
 }

@@ -34,6 +34,26 @@ pub struct RenderSettings {
     pub png_only: bool,
     /// Placement checks spread over the case (plus the farthest-from-log instant).
     pub placement_checks: usize,
+    /// The OpenSCENARIO version of `scenario.xosc` (`1.0` for CARLA's ScenarioRunner).
+    #[serde(default, with = "xosc_version_text")]
+    pub xosc_version: export::XoscVersion,
+}
+
+/// `XoscVersion` as its text (`"1.0"`, `"1.2"`) in run and demo records.
+mod xosc_version_text {
+    use export::XoscVersion;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &XoscVersion, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(match v {
+            XoscVersion::V1_0 => "1.0",
+            XoscVersion::V1_2 => "1.2",
+        })
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<XoscVersion, D::Error> {
+        String::deserialize(d)?.parse().map_err(serde::de::Error::custom)
+    }
 }
 
 impl Default for RenderSettings {
@@ -45,6 +65,7 @@ impl Default for RenderSettings {
             scale: 1.0,
             png_only: false,
             placement_checks: 4,
+            xosc_version: export::XoscVersion::default(),
         }
     }
 }
@@ -104,12 +125,13 @@ pub struct RunInputs<'a, B: Backend> {
 }
 
 /// Every file and directory a run writes, removed before a new run so a directory never mixes two.
-const OUTPUTS: [&str; 9] = [
+const OUTPUTS: [&str; 10] = [
     "run.json",
     "scenario.json",
     "executed.json",
     "metrics.json",
     "scenario.xosc",
+    "scenario.xodr",
     "bev.png",
     "tracking.png",
     "placement",
@@ -196,8 +218,8 @@ pub fn run_with<B: Backend>(
     let metrics_file =
         MetricsFile { metrics: best.metrics.clone(), placement: placement.clone(), attempts: summary.attempts.clone() };
     write_json_pretty(&out.join("metrics.json"), &metrics_file)?;
-    crate::outputs::write_xosc(inputs.scene, &executed, &out.join("scenario.xosc"))?;
-    files.push("scenario.xosc".into());
+    crate::outputs::write_xosc(inputs.scene, &executed, out, inputs.render.xosc_version)?;
+    files.extend(["scenario.xodr".into(), "scenario.xosc".into()]);
     files.extend(crate::outputs::plots(inputs.scene, &best.plan, &executed, &best.metrics, out));
     summary.timings.push(Timing { stage: "export + checks".into(), seconds: clock.elapsed().as_secs_f64() });
 

@@ -135,9 +135,13 @@ fn run_writes_a_replayable_case() {
     let s = pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &indicatif::ProgressBar::hidden()).unwrap();
     let plan = &s.result.as_ref().expect("a case").best().unwrap().plan;
     assert_eq!(plan.adversary_track, "lead-1", "--adversary is respected");
-    for f in ["scenario.json", "executed.json", "metrics.json", "scenario.xosc", "run.json"] {
+    for f in ["scenario.json", "executed.json", "metrics.json", "scenario.xosc", "scenario.xodr", "run.json"] {
         assert!(out.join(f).is_file(), "{f} written");
     }
+    // The OpenSCENARIO file names the OpenDRIVE file written beside it, which reads back.
+    let xosc = std::fs::read_to_string(out.join("scenario.xosc")).unwrap();
+    assert!(xosc.contains("<LogicFile filepath=\"scenario.xodr\"/>"), "RoadNetwork names the roads");
+    export::read_xodr(&std::fs::read_to_string(out.join("scenario.xodr")).unwrap()).expect("the roads read back");
     let v = &s.videos[0].output;
     assert!(v.frames > 10 && v.path.exists(), "video {v:?}");
     // The OpenSCENARIO file re-read gives back the executed adversary within 1 cm.

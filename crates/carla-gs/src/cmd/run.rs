@@ -31,6 +31,9 @@ pub struct VideoArgs {
     /// Where the rasterizer runs.
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: Device,
+    /// OpenSCENARIO version of `scenario.xosc`: 1.2, or 1.0 for CARLA's ScenarioRunner.
+    #[arg(long, default_value = "1.2")]
+    pub xosc_version: export::XoscVersion,
 }
 
 impl VideoArgs {
@@ -41,6 +44,7 @@ impl VideoArgs {
             lead_in_s: self.lead_in,
             scale: self.scale,
             png_only: self.png,
+            xosc_version: self.xosc_version,
             ..RenderSettings::default()
         }
     }

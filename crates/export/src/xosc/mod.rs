@@ -29,9 +29,16 @@
 //!   Pitch and roll are not written (boxes are upright; a simulator may align to its road).
 //! * Numbers: positions and sizes with 6 decimals (1 µm), times and angles with 9, trailing
 //!   zeros trimmed.
-//! * `RoadNetwork` is empty unless [`XoscOptions::road_network`] names an OpenDRIVE file: no
-//!   road network is exported; the replaying simulator must provide one in the log's world frame
-//!   (or none: the trajectories do not need it).
+//! * `RoadNetwork` is empty unless [`XoscOptions::road_network`] names an OpenDRIVE file (`run`
+//!   writes the scene's as `scenario.xodr` beside the case and names it, relative to the
+//!   `.xosc`); without one the replaying simulator must provide a road network in the log's
+//!   world frame (or none: the trajectories do not need it).
+//! * **Version** ([`XoscVersion`]): 1.2 by default; 1.0 for CARLA's ScenarioRunner, which reads
+//!   1.0 only. A 1.0 file differs where the 1.0 schema does: `revMinor` 0, no file-header
+//!   `Properties` (the parameters carry the same values), the `Trajectory` inline in the
+//!   `FollowTrajectoryAction` (1.2 wraps it in `TrajectoryRef`), event priority `overwrite`
+//!   (1.2: `override`), pedestrians with the required `model` attribute, and time triggers
+//!   `greaterThan` 1 us before the time (1.0 has no `greaterOrEqual`).
 
 mod actors;
 mod read;
@@ -61,9 +68,32 @@ pub const PROP_TRACK_ID: &str = "carla_gs.track_id";
 pub const PROP_CLASS: &str = "carla_gs.class";
 pub const PROP_ROLE: &str = "carla_gs.role";
 
+/// Which OpenSCENARIO version to write (see the module doc for the differences).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum XoscVersion {
+    /// OpenSCENARIO 1.0 (CARLA ScenarioRunner).
+    V1_0,
+    /// OpenSCENARIO 1.2.
+    #[default]
+    V1_2,
+}
+
+impl std::str::FromStr for XoscVersion {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "1.0" => Ok(XoscVersion::V1_0),
+            "1.2" => Ok(XoscVersion::V1_2),
+            other => Err(format!("unknown OpenSCENARIO version {other:?} (expected 1.0 or 1.2)")),
+        }
+    }
+}
+
 /// What to write besides the ego and the adversary.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct XoscOptions {
+    /// The OpenSCENARIO version written.
+    pub version: XoscVersion,
     /// Also export every other scene track present during the case as `actor_<id>`.
     pub include_others: bool,
     /// `FileHeader@date` (`xsd:dateTime`, e.g. `2025-01-31T12:00:00Z`); `None` writes the

@@ -1,12 +1,12 @@
-//! Writing: the executed case becomes an OpenSCENARIO 1.2 tree (the mapping is in the `xosc`
-//! module doc). The actors (`actors.rs`) are laid out as `Entities`, `Init` teleports and one
+//! Writing: the executed case becomes an OpenSCENARIO 1.2 or 1.0 tree (the mapping and the
+//! version differences are in the `xosc` module doc). The actors (`actors.rs`) are laid out as `Entities`, `Init` teleports and one
 //! maneuver group per actor with a `FollowTrajectoryAction` per contiguous run of vertices, then
 //! serialised by quick-xml.
 
 use super::actors::{check_finite, collect_actors, Actor, V};
 use super::{
-    XoscOptions, LOG_START_PARAM, PROP_ADVERSARY_TRACK, PROP_BEHAVIOR, PROP_CLASS, PROP_FORMAT, PROP_LOG_START,
-    PROP_ROLE, PROP_SCENE, PROP_TRACK_ID, XOSC_FORMAT,
+    XoscOptions, XoscVersion, LOG_START_PARAM, PROP_ADVERSARY_TRACK, PROP_BEHAVIOR, PROP_CLASS, PROP_FORMAT,
+    PROP_LOG_START, PROP_ROLE, PROP_SCENE, PROP_TRACK_ID, XOSC_FORMAT,
 };
 use crate::error::ExportError;
 use crate::xml::{num, Element};
@@ -44,14 +44,25 @@ fn world_position(v: &V) -> Element {
     )
 }
 
-fn sim_time_trigger(tag: &str, name: &str, t: f64) -> Element {
+/// How far before its time a 1.0 trigger (`greaterThan`, 1.0 has no `greaterOrEqual`) is set (s).
+const V1_0_TRIGGER_LEAD_S: f64 = 1e-6;
+
+fn sim_time_trigger(v: XoscVersion, tag: &str, name: &str, t: f64) -> Element {
+    let condition = match v {
+        XoscVersion::V1_2 => {
+            Element::new("SimulationTimeCondition").attr("value", fine(t)).attr("rule", "greaterOrEqual")
+        }
+        XoscVersion::V1_0 => Element::new("SimulationTimeCondition")
+            .attr("value", fine(t - V1_0_TRIGGER_LEAD_S))
+            .attr("rule", "greaterThan"),
+    };
     Element::new(tag).child(
         Element::new("ConditionGroup").child(
-            Element::new("Condition").attr("name", name).attr("delay", "0").attr("conditionEdge", "none").child(
-                Element::new("ByValueCondition").child(
-                    Element::new("SimulationTimeCondition").attr("value", fine(t)).attr("rule", "greaterOrEqual"),
-                ),
-            ),
+            Element::new("Condition")
+                .attr("name", name)
+                .attr("delay", "0")
+                .attr("conditionEdge", "none")
+                .child(Element::new("ByValueCondition").child(condition)),
         ),
     )
 }
@@ -78,13 +89,16 @@ fn document(scene: &Scene, executed: &Executed, opts: &XoscOptions, actors: &[Ac
         "carla-gs corner case: {behavior} by track {adv_track} in scene {} (plan by {}, t0 {} s on the log clock); OpenSCENARIO time 0 is log time {t_start_text} s",
         scene.name, plan.agent, plan.start_time_s
     );
-    let header = Element::new("FileHeader")
+    let v = opts.version;
+    let mut header = Element::new("FileHeader")
         .attr("revMajor", "1")
-        .attr("revMinor", "2")
+        .attr("revMinor", if v == XoscVersion::V1_0 { "0" } else { "2" })
         .attr("date", opts.date.clone().unwrap_or_else(now_utc))
         .attr("description", description)
-        .attr("author", opts.author.clone().unwrap_or_else(|| "carla-gs".into()))
-        .child(Element::new("Properties").children(header_props));
+        .attr("author", opts.author.clone().unwrap_or_else(|| "carla-gs".into()));
+    if v == XoscVersion::V1_2 {
+        header = header.child(Element::new("Properties").children(header_props));
+    }
     let param = |name: &str, ty: &str, value: &str| {
         Element::new("ParameterDeclaration").attr("name", name).attr("parameterType", ty).attr("value", value)
     };
@@ -103,7 +117,7 @@ fn document(scene: &Scene, executed: &Executed, opts: &XoscOptions, actors: &[Ac
         .child(params)
         .child(Element::new("CatalogLocations"))
         .child(road)
-        .child(Element::new("Entities").children(actors.iter().map(scenario_object)))
+        .child(Element::new("Entities").children(actors.iter().map(|a| scenario_object(v, a))))
         .child(
             Element::new("Storyboard")
                 .child(Element::new("Init").child(Element::new("Actions").children(actors.iter().map(|a| {
@@ -116,15 +130,15 @@ fn document(scene: &Scene, executed: &Executed, opts: &XoscOptions, actors: &[Ac
                     Element::new("Story").attr("name", "carla_gs_case").child(
                         Element::new("Act")
                             .attr("name", "replay")
-                            .children(actors.iter().map(maneuver_group))
-                            .child(sim_time_trigger("StartTrigger", "case_start", 0.0)),
+                            .children(actors.iter().map(|a| maneuver_group(v, a)))
+                            .child(sim_time_trigger(v, "StartTrigger", "case_start", 0.0)),
                     ),
                 )
-                .child(sim_time_trigger("StopTrigger", "case_end", t_end)),
+                .child(sim_time_trigger(v, "StopTrigger", "case_end", t_end)),
         )
 }
 
-fn scenario_object(a: &Actor) -> Element {
+fn scenario_object(v: XoscVersion, a: &Actor) -> Element {
     let [l, w, h] = a.size_lwh;
     let bbox = Element::new("BoundingBox")
         .child(Element::new("Center").attr("x", "0").attr("y", "0").attr("z", len(h / 2.0)))
@@ -166,6 +180,13 @@ fn scenario_object(a: &Actor) -> Element {
                 )))
                 .child(props)
         }
+        ObjectClass::Pedestrian if v == XoscVersion::V1_0 => Element::new("Pedestrian")
+            .attr("model", "pedestrian")
+            .attr("name", "pedestrian")
+            .attr("mass", "80")
+            .attr("pedestrianCategory", "pedestrian")
+            .child(bbox)
+            .child(props),
         ObjectClass::Pedestrian => Element::new("Pedestrian")
             .attr("name", "pedestrian")
             .attr("mass", "80")
@@ -182,15 +203,19 @@ fn scenario_object(a: &Actor) -> Element {
     Element::new("ScenarioObject").attr("name", &a.name).child(object)
 }
 
-fn maneuver_group(a: &Actor) -> Element {
+fn maneuver_group(v: XoscVersion, a: &Actor) -> Element {
     let events = a.runs.iter().enumerate().map(|(k, run)| {
         let vertices = run.iter().map(|v| Element::new("Vertex").attr("time", fine(v.t)).child(world_position(v)));
         let trajectory = Element::new("Trajectory")
             .attr("name", format!("{}_path{k}", a.name))
             .attr("closed", "false")
             .child(Element::new("Shape").child(Element::new("Polyline").children(vertices)));
+        let trajectory = match v {
+            XoscVersion::V1_2 => Element::new("TrajectoryRef").child(trajectory),
+            XoscVersion::V1_0 => trajectory,
+        };
         let follow = Element::new("FollowTrajectoryAction")
-            .child(Element::new("TrajectoryRef").child(trajectory))
+            .child(trajectory)
             .child(
                 Element::new("TimeReference").child(
                     Element::new("Timing")
@@ -202,14 +227,14 @@ fn maneuver_group(a: &Actor) -> Element {
             .child(Element::new("TrajectoryFollowingMode").attr("followingMode", "position"));
         Element::new("Event")
             .attr("name", format!("{}_run{k}", a.name))
-            .attr("priority", "override")
+            .attr("priority", if v == XoscVersion::V1_0 { "overwrite" } else { "override" })
             .attr("maximumExecutionCount", "1")
             .child(
                 Element::new("Action")
                     .attr("name", format!("{}_follow{k}", a.name))
                     .child(Element::new("PrivateAction").child(Element::new("RoutingAction").child(follow))),
             )
-            .child(sim_time_trigger("StartTrigger", &format!("{}_run{k}_start", a.name), run[0].t))
+            .child(sim_time_trigger(v, "StartTrigger", &format!("{}_run{k}_start", a.name), run[0].t))
     });
     Element::new("ManeuverGroup")
         .attr("name", format!("{}_group", a.name))
