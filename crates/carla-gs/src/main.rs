@@ -98,11 +98,11 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.downcast_ref::<cmd::NoCase>().is_some() => {
-            eprintln!("no case: {e:#}");
+            eprintln!("no case: {}", cmd::message::message(&e));
             ExitCode::from(3)
         }
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", cmd::message::message(&e));
             ExitCode::from(2)
         }
     }

@@ -144,8 +144,9 @@ fn library_sources_and_replace_auto() {
         "--library",
         &p(&lib),
         "--out",
-        &p(&out),
+        &p(&out.with_extension("missing")),
     ]);
     assert_eq!(missing.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&missing.stderr).contains("nobody"));
+    assert!(!out.with_extension("missing").exists(), "a failed replace left its --out");
 }

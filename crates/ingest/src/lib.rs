@@ -127,6 +127,20 @@ fn safe_dir_name(id: &str) -> Option<&str> {
     ok.then_some(id)
 }
 
+/// What `--force` looks for before replacing an existing `--out`.
+const SCENE_MARKER: &str = "scene.json of format carla-gs-scene/1, or only sub-directories holding one";
+
+/// A scene directory, or a directory of scene directories (several WOMD scenarios).
+fn is_scene_output(dir: &Path) -> bool {
+    let marked = |d: &Path| scene::has_format_marker(d, "scene.json", scene::SCENE_FORMAT);
+    if marked(dir) {
+        return true;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return false };
+    let entries: Vec<_> = entries.flatten().map(|e| e.path()).collect();
+    !entries.is_empty() && entries.iter().all(|p| p.is_dir() && marked(p))
+}
+
 /// Converts `inputs` into scene directories under `out`: a Frame segment or a single Scenario
 /// becomes the scene `out`; several Scenarios become `out/<scenario_id>/`. Nothing appears at
 /// `out` unless every input converted and validated.
@@ -137,6 +151,7 @@ pub fn ingest(
     overwrite: bool,
     progress: &ProgressBar,
 ) -> Result<Vec<Written>, IngestError> {
+    scene::check_replaceable(out, overwrite, "a scene directory", SCENE_MARKER, is_scene_output)?;
     let staged = StagedDir::new(out, overwrite)?;
     let scenes = convert(inputs, expect, Some(staged.path()), progress)?;
     if scenes.is_empty() {
@@ -158,7 +173,14 @@ pub fn ingest(
             PathBuf::from(name)
         };
         if rel_dirs.contains(&rel) {
-            return Err(IngestError::Scene(scene::SceneError::AlreadyExists { path: out.join(&rel) }));
+            return Err(IngestError::Field {
+                file: PathBuf::from(&s.source.files[0]),
+                field: "scenario_id".into(),
+                message: format!(
+                    "scenario `{}` appears more than once in the input; give each scenario once",
+                    s.source.id
+                ),
+            });
         }
         let dir = staged.path().join(&rel);
         std::fs::create_dir_all(&dir).map_err(|e| IngestError::Io { file: dir.clone(), source: e })?;

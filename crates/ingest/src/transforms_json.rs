@@ -209,10 +209,55 @@ fn write_image(src: &Path, cam: &Camera, staging: &Path, frame: usize) -> Result
     Ok(rel)
 }
 
+/// The intrinsics keys read through `#[serde(flatten)]`, where serde cannot say which key failed.
+const INTRINSIC_KEYS: [&str; 14] = [
+    "camera_model",
+    "camera_angle_x",
+    "camera_angle_y",
+    "fl_x",
+    "fl_y",
+    "cx",
+    "cy",
+    "w",
+    "h",
+    "k1",
+    "k2",
+    "k3",
+    "p1",
+    "p2",
+];
+
+/// A parse error reported at `.` (inside a flattened struct) names the intrinsics key at fault.
+fn name_flattened_field(file: &Path, e: scene::SceneError) -> IngestError {
+    let at_root = matches!(&e, scene::SceneError::Json { field, .. } if field == "." || field.is_empty());
+    let Some(v) = at_root.then(|| std::fs::read(file).ok()).flatten().and_then(|b| serde_json::from_slice(&b).ok())
+    else {
+        return e.into();
+    };
+    let v: serde_json::Value = v;
+    let bad = |obj: &serde_json::Value, at: &str| {
+        INTRINSIC_KEYS.iter().find_map(|k| {
+            let x = obj.get(*k)?;
+            let fine = if *k == "camera_model" { x.is_string() } else { x.is_number() };
+            (!fine && !x.is_null()).then(|| {
+                field_err(
+                    file,
+                    format!("{at}{k}"),
+                    format!("expected a {}, got {x}", if *k == "camera_model" { "string" } else { "number" }),
+                )
+            })
+        })
+    };
+    let frames = v.get("frames").and_then(|f| f.as_array()).cloned().unwrap_or_default();
+    bad(&v, "")
+        .or_else(|| frames.iter().enumerate().find_map(|(i, f)| bad(f, &format!("frames[{i}]."))))
+        .unwrap_or_else(|| e.into())
+}
+
 /// Reads `dir/transforms.json`; with `staging`, writes the (undistorted) images under it.
 pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBar) -> Result<Scene, IngestError> {
     let file = dir.join(FILE_NAME);
-    let parsed: FileJson = scene::format::read_json(&file)?;
+    let parsed: FileJson = scene::format::read_json(&file).map_err(|e| name_flattened_field(&file, e))?;
     if parsed.frames.is_empty() {
         return Err(field_err(&file, "frames".into(), "no frames"));
     }

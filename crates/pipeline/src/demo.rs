@@ -203,6 +203,7 @@ pub fn run_demo_on<B: Backend + Clone>(
             out_dir: &model_dir,
             cfg: cfg.train.clone(),
             resume,
+            force: recon::out_dir::ForceMode::Replace,
             stop_after: None,
             priors: priors.as_ref(),
         };

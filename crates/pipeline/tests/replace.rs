@@ -42,6 +42,7 @@ fn replaced_actor_lands_in_place_and_beats_the_reconstruction_from_a_novel_view(
         out_dir: &model_dir,
         cfg,
         resume: false,
+        force: recon::out_dir::ForceMode::Refuse,
         stop_after: None,
         priors: &none,
     };

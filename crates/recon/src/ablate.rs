@@ -66,7 +66,15 @@ pub fn ablate<B: Backend + Clone>(
         cfg.init.surface_neighbours = surface_neighbours;
         let dir = out.join(format!("row{i}"));
         let pb = progress(name);
-        let req = TrainRequest { scene_dir, out_dir: &dir, cfg, resume: false, stop_after: None, priors };
+        let req = TrainRequest {
+            scene_dir,
+            out_dir: &dir,
+            cfg,
+            resume: false,
+            force: crate::out_dir::ForceMode::Replace,
+            stop_after: None,
+            priors,
+        };
         let s = train(req, backend.clone(), &pb)?;
         pb.finish_and_clear();
         let eval = evaluate_model_dir(backend, &dir, scene_dir, priors)?;

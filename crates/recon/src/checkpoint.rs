@@ -223,6 +223,11 @@ fn check_values(st: &TrainState) -> Result<(), String> {
     Ok(())
 }
 
+/// Whether a file starting with these eight bytes is a checkpoint of ours.
+pub fn has_magic(head: &[u8; 8]) -> bool {
+    head == MAGIC
+}
+
 /// Loads a checkpoint and the run it names (`None` for one written before runs were named).
 pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconError> {
     let bytes = std::fs::read(path).map_err(crate::error::io(path))?;

@@ -30,6 +30,7 @@ pub mod metrics;
 pub mod model;
 pub mod model_io;
 pub mod optim;
+pub mod out_dir;
 pub mod pose;
 pub mod priors;
 pub mod resume;

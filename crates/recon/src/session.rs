@@ -1,6 +1,7 @@
 //! A whole training run for `carla-gs train`: load the scene and its priors, make the views,
 //! initialise (or resume from the checkpoint), iterate with a progress bar showing loss and PSNR,
-//! checkpoint at intervals (crash-safe), and write the model directory.
+//! checkpoint at intervals (crash-safe), and write the model directory: in place for a new or
+//! resumed run, or built beside an existing model and swapped in at the end ([`crate::out_dir`]).
 
 use crate::backend::Backend;
 use crate::checkpoint::{self, TrainState};
@@ -11,6 +12,7 @@ use crate::error::ReconError;
 use crate::init::{initialise, scene_extent, InitReport};
 use crate::loss::LossParts;
 use crate::model_io::{write_model, ModelRecord};
+use crate::out_dir::{ForceMode, WorkDir};
 use crate::resume;
 use crate::train::{StepReport, Trainer};
 use indicatif::ProgressBar;
@@ -23,6 +25,8 @@ pub struct TrainRequest<'a> {
     pub out_dir: &'a Path,
     pub cfg: TrainConfig,
     pub resume: bool,
+    /// What to do with an existing `out_dir` when not resuming.
+    pub force: ForceMode,
     /// Stop (with a checkpoint) after this iteration, as if killed there (tests, budgets).
     pub stop_after: Option<usize>,
     pub priors: &'a PriorLoader<'a>,
@@ -56,7 +60,14 @@ pub fn prepare(scene_dir: &Path, cfg: &TrainConfig, priors: &PriorLoader) -> Res
 pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) -> Result<TrainSummary, ReconError> {
     let cfg = req.cfg.clone();
     cfg.validate().map_err(ReconError::Config)?;
-    let ckpt_path = req.out_dir.join("checkpoint.bin");
+    // model.json records the scene directory as text: a path that is not UTF-8 is refused
+    // before anything is trained or written.
+    if req.scene_dir.to_str().is_none() {
+        return Err(ReconError::Input(format!(
+            "{}: the scene path contains invalid UTF-8 (model.json records it as text); rename it",
+            req.scene_dir.display()
+        )));
+    }
     let loaded = scene::load_scene(req.scene_dir)?;
     let run = resume::identity(req.scene_dir, &loaded, &cfg)?;
     let resumed = match req.resume {
@@ -69,8 +80,34 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     if let Some(st) = resumed.as_ref().filter(|st| st.next_iteration == cfg.iterations && complete) {
         return Ok(finished(st));
     }
-    std::fs::create_dir_all(req.out_dir).map_err(crate::error::io(req.out_dir))?;
+    let work = crate::out_dir::plan(req.out_dir, req.resume, req.force)?;
+    let result = run_in(&req, &work, resumed, &run, backend, progress);
+    match result {
+        Ok(summary) => {
+            work.commit()?;
+            Ok(summary)
+        }
+        Err(e) => {
+            work.discard();
+            Err(e)
+        }
+    }
+}
+
+/// Trains into `work` (the destination or its staging directory).
+fn run_in<B: Backend>(
+    req: &TrainRequest,
+    work: &WorkDir,
+    resumed: Option<TrainState>,
+    run: &checkpoint::RunIdentity,
+    backend: B,
+    progress: &ProgressBar,
+) -> Result<TrainSummary, ReconError> {
+    let cfg = req.cfg.clone();
     let (scene, views) = prepare(req.scene_dir, &cfg, req.priors)?;
+    work.create()?;
+    let out_dir = work.path();
+    let ckpt_path = out_dir.join("checkpoint.bin");
     let extent = scene_extent(&views);
     let (state, init): (TrainState, Option<InitReport>) = if let Some(st) = resumed {
         (st, None)
@@ -100,7 +137,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     };
     // The config is written before the first step so an interrupted run can be resumed.
     let toml = toml::to_string(&cfg).map_err(|e| ReconError::Config(e.to_string()))?;
-    scene::write_file_atomic(&req.out_dir.join("config.toml"), toml.as_bytes())?;
+    scene::write_file_atomic(&out_dir.join("config.toml"), toml.as_bytes())?;
     let mut trainer = match backend.gpu() {
         Some(gpu) => {
             tracing::info!(device = %gpu.describe(), "training on the device");
@@ -134,7 +171,7 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
             tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
         }
         if cfg.checkpoint_interval > 0 && n.is_multiple_of(cfg.checkpoint_interval) && n < end {
-            checkpoint::save(&ckpt_path, trainer.state()?, &run)?;
+            checkpoint::save(&ckpt_path, trainer.state()?, run)?;
         }
     }
     let seconds = t0.elapsed().as_secs_f64();
@@ -143,14 +180,14 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
         tracing::info!(seconds = secs, times, "density control on the device");
     }
     let state = trainer.state()?;
-    checkpoint::save(&ckpt_path, state, &run)?;
+    checkpoint::save(&ckpt_path, state, run)?;
     let done = state.next_iteration;
     let ran = done - start_it;
     record.iterations = done;
     record.train_seconds = seconds;
     record.iterations_per_second = ran as f64 / seconds.max(1e-9);
     record.last_loss = last;
-    write_model(req.out_dir, &state.model, &mut record, &cfg, init.as_ref())?;
+    write_model(out_dir, &state.model, &mut record, &cfg, init.as_ref())?;
     Ok(TrainSummary {
         iterations_done: done,
         seconds,

@@ -4,6 +4,7 @@
 
 use indicatif::ProgressBar;
 use recon::backend::Cpu;
+use recon::out_dir::ForceMode;
 use recon::session::{train, TrainRequest};
 use recon::TrainConfig;
 use std::path::Path;
@@ -36,7 +37,15 @@ fn run(
     stop_after: Option<usize>,
 ) -> recon::session::TrainSummary {
     let none = |_: &recon::data::View| Ok(None);
-    let req = TrainRequest { scene_dir: scene, out_dir: out, cfg: cfg.clone(), resume, stop_after, priors: &none };
+    let req = TrainRequest {
+        scene_dir: scene,
+        out_dir: out,
+        cfg: cfg.clone(),
+        resume,
+        force: ForceMode::Refuse,
+        stop_after,
+        priors: &none,
+    };
     train(req, Cpu, &ProgressBar::hidden()).expect("training runs")
 }
 
@@ -65,8 +74,15 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
     let mut other = cfg.clone();
     other.seed = 9;
     let none = |_: &recon::data::View| Ok(None);
-    let req =
-        TrainRequest { scene_dir: &scene, out_dir: &parts, cfg: other, resume: true, stop_after: None, priors: &none };
+    let req = TrainRequest {
+        scene_dir: &scene,
+        out_dir: &parts,
+        cfg: other,
+        resume: true,
+        force: ForceMode::Refuse,
+        stop_after: None,
+        priors: &none,
+    };
     let err = train(req, Cpu, &ProgressBar::hidden()).expect_err("config mismatch refused").to_string();
     assert!(err.contains("config.toml"), "{err}");
     // A damaged checkpoint is refused by name.
@@ -80,6 +96,7 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
         out_dir: &parts,
         cfg: cfg.clone(),
         resume: true,
+        force: ForceMode::Refuse,
         stop_after: None,
         priors: &none,
     };

@@ -17,6 +17,10 @@ pub enum SceneError {
     Invalid { file: PathBuf, field: String, message: String },
     #[error("{path}: already exists (pass --force to replace it)")]
     AlreadyExists { path: PathBuf },
+    #[error("{path}: exists and is not a directory; refusing to replace it")]
+    NotADirectory { path: PathBuf },
+    #[error("{path}: not {what} (no {marker}); --force replaces only our own outputs")]
+    NotOurs { path: PathBuf, what: String, marker: String },
 }
 
 impl SceneError {

@@ -35,15 +35,22 @@ pub struct StagedDir {
 }
 
 impl StagedDir {
-    /// Starts building the directory `dest`. Fails early if `dest` exists and `overwrite` is off.
+    /// Starts building the directory `dest`. Fails early if `dest` exists and `overwrite` is off,
+    /// or if `dest` exists and is not a directory (a file is never replaced).
     pub fn new(dest: &Path, overwrite: bool) -> Result<Self, SceneError> {
-        if dest.exists() && !overwrite {
-            return Err(SceneError::AlreadyExists { path: dest.to_path_buf() });
+        if std::fs::symlink_metadata(dest).is_ok() {
+            if !dest.is_dir() {
+                return Err(SceneError::NotADirectory { path: dest.to_path_buf() });
+            }
+            if !overwrite {
+                return Err(SceneError::AlreadyExists { path: dest.to_path_buf() });
+            }
         }
         let parent = parent_dir(dest);
         std::fs::create_dir_all(&parent).map_err(|e| SceneError::io(&parent, e))?;
+        crate::owned::remove_stale_staging(dest);
         let staging = tempfile::Builder::new()
-            .prefix(&format!(".{}.", file_name(dest)))
+            .prefix(&crate::owned::staging_prefix(dest))
             .suffix(".tmp")
             .tempdir_in(&parent)
             .map_err(|e| SceneError::io(&parent, e))?;
@@ -81,21 +88,25 @@ impl StagedDir {
             let _ = std::fs::remove_dir_all(&staged);
             return Err(SceneError::io(&self.dest, e));
         }
+        // The new output is in place: a failure to delete the old one is not a failure of the
+        // command (it would say "nothing was written" over a written output), only a warning.
         if let Some(aside) = old {
-            std::fs::remove_dir_all(&aside).map_err(|e| SceneError::io(&aside, e))?;
+            if let Err(e) = std::fs::remove_dir_all(&aside) {
+                eprintln!("warning: {}: old output not removed: {e}", aside.display());
+            }
         }
         Ok(self.dest)
     }
 }
 
-fn parent_dir(path: &Path) -> PathBuf {
+pub(crate) fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     }
 }
 
-fn file_name(path: &Path) -> String {
+pub(crate) fn file_name(path: &Path) -> String {
     path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into())
 }
 
@@ -128,6 +139,16 @@ mod tests {
         b.commit().unwrap();
         assert_eq!(std::fs::read(dest.join("v")).unwrap(), b"2");
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_file_is_never_replaced_by_a_directory() {
+        let root = tempfile::tempdir().unwrap();
+        let dest = root.path().join("scene");
+        std::fs::write(&dest, b"user data").unwrap();
+        assert!(matches!(StagedDir::new(&dest, true), Err(SceneError::NotADirectory { .. })));
+        assert_eq!(std::fs::read(&dest).unwrap(), b"user data");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "debris left");
     }
 
     #[test]

@@ -210,6 +210,8 @@ pub fn synthesize(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Summary, SynthError> {
     let seq = Sequence::new(config)?;
+    let marked = |d: &Path| scene::has_format_marker(d, "scene.json", scene::SCENE_FORMAT);
+    scene::check_replaceable(out, config.force, "a scene directory", "scene.json of format carla-gs-scene/1", marked)?;
     let staged = StagedDir::new(out, config.force)?;
     let dir = staged.path().to_path_buf();
     for sub in [IMAGES_DIR, LIDAR_DIR, gt::GT_DIR] {

@@ -120,6 +120,9 @@ pub struct ReplaceArgs {
     /// The new model directory.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing model directory at --out (only one of ours).
+    #[arg(long)]
+    force: bool,
 }
 
 pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
@@ -127,7 +130,18 @@ pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
     let opts = AlignOptions { lambda: a.lambda, isotropic: a.isotropic };
     let up = UpAxis::parse(&a.up)?;
     let pairs = [(a.track.clone(), a.asset.clone())];
-    let done = render::asset::replace::replace_in_dir(&a.model, &a.out, &pairs, &a.library, up, &opts)?;
+    let same = matches!((a.model.canonicalize(), a.out.canonicalize()), (Ok(m), Ok(o)) if m == o);
+    anyhow::ensure!(
+        !same,
+        "--out {}: is the input model directory; write the replaced model elsewhere",
+        a.out.display()
+    );
+    // The new model is built beside --out and renamed into place whole.
+    let marker = "model.json of format carla-gs-model/1 or a carla-gs checkpoint.bin";
+    scene::check_replaceable(&a.out, a.force, "a model directory", marker, recon::out_dir::is_model_dir)?;
+    let staged = scene::StagedDir::new(&a.out, a.force)?;
+    let done = render::asset::replace::replace_in_dir(&a.model, staged.path(), &pairs, &a.library, up, &opts)?;
+    staged.commit()?;
     for r in &done {
         let c = r.alignment.chosen();
         println!(

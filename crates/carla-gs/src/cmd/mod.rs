@@ -10,6 +10,7 @@ pub mod export_xodr;
 pub mod ingest;
 pub mod inspect;
 pub mod llm;
+pub mod message;
 pub mod metrics;
 pub mod priors;
 pub mod progress;

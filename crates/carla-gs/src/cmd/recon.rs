@@ -37,6 +37,10 @@ pub struct TrainArgs {
     /// reported as finished and left untouched, exit 0).
     #[arg(long)]
     resume: bool,
+    /// Replace an existing model directory at --out (only one of ours: model.json or
+    /// checkpoint.bin); the old model stays until the new one is complete.
+    #[arg(long, conflicts_with = "resume")]
+    force: bool,
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
     /// Stop after this iteration (with a checkpoint), to continue later with --resume.
@@ -110,6 +114,7 @@ fn train_on<B: Backend>(a: TrainArgs, backend: B) -> anyhow::Result<()> {
         out_dir: &a.out,
         cfg,
         resume: a.resume,
+        force: if a.force { recon::out_dir::ForceMode::Replace } else { recon::out_dir::ForceMode::Refuse },
         stop_after: a.stop_after,
         priors: priors.as_ref(),
     };

@@ -245,7 +245,11 @@ pub fn compute_priors(
     opts: &PriorOptions,
     progress: &indicatif::ProgressBar,
 ) -> Result<PriorIndex, PriorError> {
-    let staged = StagedDir::new(&scene_dir.join(PRIORS_DIR), opts.force)?;
+    let dest = scene_dir.join(PRIORS_DIR);
+    let marked = |d: &Path| scene::has_format_marker(d, PRIORS_FILE, PRIORS_FORMAT);
+    let marker = format!("{PRIORS_FILE} of format {PRIORS_FORMAT}");
+    scene::check_replaceable(&dest, opts.force, "a priors directory", &marker, marked)?;
+    let staged = StagedDir::new(&dest, opts.force)?;
     let pairs = stereo_pairs(scene);
     tracing::info!(pairs = pairs.len(), frames = scene.frames.len(), "computing priors");
     progress.set_length(scene.frames.iter().map(|f| f.images.len() as u64).sum());
