@@ -38,31 +38,40 @@ fn s(p: &Path) -> &str {
 #[test]
 fn numeric_flags_exit_0_2_or_3() {
     let tmp = tempfile::tempdir().unwrap();
-    let (scene, plan, ex) = (tmp.path().join("s"), tmp.path().join("plan.json"), tmp.path().join("ex.json"));
+    let (scene, plan, model) = (tmp.path().join("s"), tmp.path().join("plan.json"), tmp.path().join("m0"));
     let synth = ["synth", "--out", s(&scene), "--frames", "40", "--width", "32", "--height", "24", "--cameras", "1"];
     assert_eq!(exit_code(&synth), Some(0));
-    assert_eq!(exit_code(&["reason", s(&scene), "--t0", "1", "--out", s(&plan)]), Some(0));
+    let reason =
+        ["reason", s(&scene), "--t0", "1", "--behavior", "sudden_cut_in", "--agent", "planner", "--out", s(&plan)];
+    assert_eq!(exit_code(&reason), Some(0));
+    assert_eq!(exit_code(&["train", s(&scene), "--out", s(&model), "--iters", "2"]), Some(0));
     let out = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
     let (o_png, o_ex, o_plan, o_s, o_m) = (out("r.png"), out("e.json"), out("p.json"), out("s2"), out("m"));
-    // (command before the flag, the flag, after, allowed codes)
-    let runs: Vec<(Vec<&str>, &str, Vec<&str>, &[i32])> = vec![
-        (vec!["render", s(&scene), "--out", &o_png], "--frame", vec![], &[0, 2]),
-        (vec!["render", s(&scene), "--out", &o_png], "--scale", vec![], &[0, 2]),
-        (vec!["render", s(&scene), "--out", &o_png], "--shift-m", vec![], &[0, 2]),
-        (vec!["simulate", s(&plan), "--scene", s(&scene), "--out", &o_ex], "--fps", vec![], &[0, 2]),
-        (vec!["simulate", s(&plan), "--scene", s(&scene), "--out", &o_ex], "--control-dt", vec![], &[0, 2]),
-        (vec!["reason", s(&scene), "--out", &o_plan], "--t0", vec![], &[0, 2, 3]),
-        (vec!["reason", s(&scene), "--t0", "1", "--out", &o_plan], "--ttc", vec![], &[0, 2, 3]),
-        (
-            vec!["synth", "--out", &o_s, "--force", "--frames", "3", "--width", "16", "--height", "16"],
-            "--cameras",
-            vec![],
-            &[0, 2],
-        ),
-        (vec!["train", s(&scene), "--out", &o_m, "--force"], "--iters", vec![], &[0, 2]),
+    let render = vec!["render", s(&model), "--scene", s(&scene), "--camera", "FRONT", "--out", &o_png];
+    let simulate = vec!["simulate", s(&plan), "--scene", s(&scene), "--out", &o_ex];
+    let reason_at = vec!["reason", s(&scene), "--behavior", "sudden_cut_in", "--agent", "planner", "--out", &o_plan];
+    let synth2 = vec!["synth", "--out", &o_s, "--force", "--frames", "3", "--width", "16", "--height", "16"];
+    // (command before the flag, the flag, after, a sane value that must succeed, allowed codes)
+    type Run<'a> = (Vec<&'a str>, &'a str, Vec<&'a str>, &'a str, &'a [i32]);
+    let runs: Vec<Run> = vec![
+        (render.clone(), "--frame", vec![], "0", &[0, 2]),
+        (render.clone(), "--scale", vec!["--frame", "0"], "0.5", &[0, 2]),
+        (render.clone(), "--shift-m", vec!["--frame", "0"], "1", &[0, 2]),
+        (simulate.clone(), "--fps", vec![], "24", &[0, 2]),
+        (simulate.clone(), "--control-dt", vec![], "0.05", &[0, 2]),
+        (reason_at.clone(), "--t0", vec![], "1", &[0, 2, 3]),
+        (reason_at.clone(), "--ttc", vec!["--t0", "1"], "3", &[0, 2, 3]),
+        (synth2.clone(), "--cameras", vec![], "1", &[0, 2]),
+        (vec!["train", s(&scene), "--out", &o_m, "--force"], "--iters", vec![], "1", &[0, 2]),
     ];
     let mut n = 0;
-    for (before, flag, after, allowed) in &runs {
+    for (before, flag, after, sane, allowed) in &runs {
+        // The command itself is right: with a sane value it succeeds (so a refusal below is the
+        // value's, not a usage error).
+        let args: Vec<&str> = before.iter().copied().chain([*flag, sane]).chain(after.iter().copied()).collect();
+        // `reason` may find no case with that value (3); 2 would be a usage error.
+        let code = exit_code(&args);
+        assert!(matches!(code, Some(0)) || (allowed.contains(&3) && code == Some(3)), "carla-gs {args:?}: {code:?}");
         for v in EXTREMES {
             let args: Vec<&str> = before.iter().copied().chain([*flag, v]).chain(after.iter().copied()).collect();
             let code = exit_code(&args);

@@ -7,7 +7,9 @@
 //! `fuzz <target>: <cases> cases, <ok> ok, <err> refused`. The file formats are in
 //! `fuzz_readers/files.rs`, the ingest sources in `fuzz_readers/ingest.rs`.
 
+#[path = "fuzz_readers/files.rs"]
 mod files;
+#[path = "fuzz_readers/ingest.rs"]
 mod ingest;
 
 use proptest::prelude::*;
