@@ -10,22 +10,22 @@
 //! MinTTC), so a candidate that touches a bystander is never handed over when another would not.
 //! Every rollout tried is counted in the case's `how`.
 
-use crate::runner::{cmp_rank, execute, good, CaseConfig};
+use crate::runner::{cmp_rank, execute, CaseConfig};
+use crate::tables::verified;
 use metrics::CaseMetrics;
 use reason::agents::{plan_of_candidate, ranked_candidates};
 use reason::world::World;
 use reason::ReasonOptions;
-use scene::{Executed, Plan, Scene};
+use scene::{Plan, Scene};
 
 /// Rollouts tried at most for one attempt (over every start time).
 pub const MAX_ROLLOUTS: usize = 48;
 /// Start times tried after the attempt's t0 (s) when no candidate at t0 succeeds.
 pub const START_OFFSETS_S: [f64; 4] = [0.0, 0.5, 1.0, 1.5];
 
-/// A checked choice: the plan, its rollout and metrics, and how it was found.
+/// A checked choice: the plan, its rollout's metrics, and how it was found.
 pub struct Checked {
     pub plan: Plan,
-    pub executed: Executed,
     pub metrics: CaseMetrics,
     pub how: String,
 }
@@ -45,21 +45,20 @@ pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Opti
             let plan = plan_of_candidate(&world, &o2, c);
             let executed = execute(scene, &plan, cfg).map_err(|e| format!("simulate: {e}"))?;
             let metrics = metrics::evaluate(&executed).map_err(|e| format!("metrics: {e}"))?;
-            let done = good(&metrics) && metrics.validity.valid;
+            let done = verified(&metrics);
             if best.as_ref().is_none_or(|(b, _, _)| cmp_rank(&metrics, &b.metrics).is_gt()) {
-                best = Some((Checked { plan, executed, metrics, how: String::new() }, rank + 1, off));
+                best = Some((Checked { plan, metrics, how: String::new() }, rank + 1, off));
             }
             if done {
                 break;
             }
         }
-        if tried >= MAX_ROLLOUTS || best.as_ref().is_some_and(|(b, _, _)| good(&b.metrics) && b.metrics.validity.valid)
-        {
+        if tried >= MAX_ROLLOUTS || best.as_ref().is_some_and(|(b, _, _)| verified(&b.metrics)) {
             break;
         }
     }
     Ok(best.map(|(mut b, rank, off)| {
-        let verdict = if good(&b.metrics) && b.metrics.validity.valid {
+        let verdict = if verified(&b.metrics) {
             "the first valid with zone hit and success"
         } else {
             "the best, none valid with zone hit and success"

@@ -134,7 +134,7 @@ impl CaseResult {
     }
 }
 
-pub(crate) fn good(m: &CaseMetrics) -> bool {
+fn good(m: &CaseMetrics) -> bool {
     m.zone_hit && m.success_center
 }
 
