@@ -11,7 +11,8 @@
 #   python3-venv                                          - the virtual environments below
 # then the default local LLM (tools/setup-model.sh), CARLA's Python client for `--backend carla`
 # (`carla==0.9.16` from PyPI in a virtual environment, $XDG_CACHE_HOME/carla-gs/carla-venv, which
-# carla-gs finds by itself) and the ASAM OpenDRIVE 1.6.1 schema for the OpenDRIVE export test (from
+# carla-gs finds by itself), Ray for batch runs (tools/batch_ray.py, in
+# $XDG_CACHE_HOME/carla-gs/ray-venv) and the ASAM OpenDRIVE 1.6.1 schema for the OpenDRIVE export test (from
 # the PyPI package `asam-qc-opendrive`, into $XDG_CACHE_HOME/carla-gs/schemas/opendrive-1.6.1).
 # Idempotent: a second run installs nothing.
 #
@@ -65,6 +66,16 @@ if ! "$venv/bin/python" -c "import carla" >/dev/null 2>&1; then
   echo "setup: installing CARLA's Python client (carla==0.9.16) into $venv" >&2
   if ! { python3 -m venv "$venv" && "$venv/bin/pip" install -q --disable-pip-version-check "carla==0.9.16"; }; then
     echo "setup: WARNING: could not install carla==0.9.16 for $(python3 --version 2>&1); --backend carla needs it" >&2
+  fi
+fi
+
+# Ray for batch runs (tools/batch_ray.py: a plan's nodes as Ray tasks, docs/batch.md), in its own
+# virtual environment, $XDG_CACHE_HOME/carla-gs/ray-venv, only when `import ray` fails there.
+ray_venv="$cache/ray-venv"
+if ! "$ray_venv/bin/python" -c "import ray" >/dev/null 2>&1; then
+  echo "setup: installing Ray (ray==2.52.1) into $ray_venv" >&2
+  if ! { python3 -m venv "$ray_venv" && "$ray_venv/bin/pip" install -q --disable-pip-version-check "ray==2.52.1"; }; then
+    echo "setup: WARNING: could not install ray==2.52.1 for $(python3 --version 2>&1); batch runs on Ray need it" >&2
   fi
 fi
 

@@ -31,6 +31,13 @@ enum Command {
     ExportXodr(cmd::export_xodr::Args),
     /// Reason -> simulate -> measure over scenes x behaviours x t0 x agents; Tables I and II, plots.
     EvalCases(cmd::eval_cases::Args),
+    /// The stress corpus (WOMD, PandaSet, KITTI paths and perturbed copies): the table per behaviour.
+    BenchCases(cmd::bench_cases::Args),
+    /// Merge `eval-cases --shard I/N` outputs into the tables of one run over all attempts.
+    Tables(cmd::tables::Args),
+    /// Batch runs over many logs: `plan` a manifest into a graph of commands, `exec` one node.
+    #[command(subcommand)]
+    Batch(cmd::batch::Command),
     /// Render a 3DGS PLY from a camera (JSON) to a PNG.
     RenderPly(cmd::splat::RenderArgs),
     /// Time the CPU rasterizer's forward and forward+backward passes; writes JSON.
@@ -80,6 +87,9 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Metrics(a) => cmd::metrics::run(a),
         Command::EvalCases(a) => cmd::eval_cases::run(a),
+        Command::BenchCases(a) => cmd::bench_cases::run(a),
+        Command::Tables(a) => cmd::tables::run(a),
+        Command::Batch(c) => cmd::batch::run(c),
         Command::ExportXodr(a) => cmd::export_xodr::run(a),
         Command::RenderPly(a) => cmd::splat::render(a),
         Command::BenchSplat(a) => cmd::splat::bench(a),

@@ -8,23 +8,28 @@
 pub mod choose;
 pub mod describe;
 pub mod llm_validity;
+pub mod merge;
 pub mod paired;
 pub mod plots;
+pub mod report;
 pub mod runner;
+pub mod shard;
 pub mod spec;
+pub mod stress;
 pub mod tables;
 pub mod window;
 
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 use reason::backend::Backend;
-use runner::{run_case, CaseConfig, CaseResult, Status};
+use runner::{run_case, CaseConfig, CaseResult};
 use scene::{Behavior, Executed, Scene};
 use serde::{Deserialize, Serialize};
-use spec::{attempts, AgentName, CaseSpec, T0Spec};
-use std::fmt::Write;
+use spec::{attempts_of, AgentName, CaseSpec, SceneMeta, T0Spec};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+pub use report::summary_markdown;
 
 pub type BackendFactory = dyn Fn(AgentName) -> Result<Box<dyn Backend>, String>;
 
@@ -36,6 +41,29 @@ pub struct EvalConfig {
     pub out: PathBuf,
     pub plots: bool,
     pub case: CaseConfig,
+    /// Run only this shard of the attempts (`shard`); `None`: all of them.
+    pub shard: Option<shard::Shard>,
+    /// Settings only the caller knows (physics backend, LLM endpoint, ...), recorded with a
+    /// shard so that shards run differently are not merged.
+    pub cli_settings: std::collections::BTreeMap<String, String>,
+}
+
+impl EvalConfig {
+    /// What decides this run's results ([`shard::Settings`]).
+    pub fn settings(&self) -> shard::Settings {
+        shard::Settings {
+            version: env!("CARGO_PKG_VERSION").into(),
+            agents: self.agents.clone(),
+            behaviors: self.behaviors.clone(),
+            t0: format!("{:?}", self.t0),
+            seed: self.seed,
+            window: self.case.window,
+            refine_rounds: self.case.refine_rounds,
+            check_rollouts: self.case.check_rollouts,
+            reason: format!("{:?}", self.case.reason),
+            cli: self.cli_settings.clone(),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -84,6 +112,9 @@ pub enum EvalError {
     Backend(String),
     #[error(transparent)]
     Output(#[from] scene::SceneError),
+    /// The request cannot be run as given (duplicate scene names, colliding attempt ids).
+    #[error("{0}")]
+    Input(String),
 }
 
 /// Writes one case's files: plan, executed trajectory, rounds and metrics, plots.
@@ -112,16 +143,118 @@ fn write_case(
     Ok(errors)
 }
 
-/// Runs every case and writes the report under `cfg.out`.
+/// Runs every case (or, with `cfg.shard`, that shard's) and writes the report under `cfg.out`
+/// (a shard writes its record instead: its tables would be partial; `merge` makes them).
 pub fn run_eval(
     scenes: &[Scene],
     cfg: &EvalConfig,
     backends: &BackendFactory,
     progress: &ProgressBar,
 ) -> Result<Report, EvalError> {
-    let mut attempts = attempts(scenes, &cfg.behaviors, &cfg.t0, cfg.seed);
+    let universe: Vec<SceneMeta> = scenes.iter().map(SceneMeta::of).collect();
+    run_eval_in(&universe, scenes, cfg, backends, progress)
+}
+
+/// The whole attempt list over `universe`, `cfg.shard`'s part of it (or all), in the order one
+/// run over all attempts has them, with their positions in the whole list.
+pub fn shard_attempts(universe: &[SceneMeta], cfg: &EvalConfig) -> Result<ShardAttempts, EvalError> {
+    let mut all = attempts_of(universe, &cfg.behaviors, &cfg.t0, cfg.seed);
     // A scene with a `--describe` reading is attempted with its behaviour only.
-    attempts.retain(|a| cfg.case.requests.get(&a.scene).is_none_or(|r| r.behavior == a.behavior));
+    all.retain(|a| cfg.case.requests.get(&a.scene).is_none_or(|r| r.behavior == a.behavior));
+    check_unique(universe, &all)?;
+    let total = all.len();
+    let digest = shard::digest(&all);
+    let mut positions: Vec<usize> = (0..total).collect();
+    if let Some(sh) = cfg.shard {
+        let which = shard::assign(&all, sh.count);
+        positions.retain(|&i| which[i] == sh.index);
+    }
+    let mine = positions.iter().map(|&i| all[i].clone()).collect();
+    Ok(ShardAttempts { attempts: mine, positions, total, digest })
+}
+
+/// A shard's attempts ([`shard_attempts`]).
+pub struct ShardAttempts {
+    pub attempts: Vec<spec::Attempt>,
+    pub positions: Vec<usize>,
+    pub total: usize,
+    pub digest: String,
+}
+
+/// [`run_eval`] where the attempt list is made over `universe` (every scene's name and length)
+/// and only `scenes` are loaded: those `cfg.shard`'s attempts use (more may be given).
+pub fn run_eval_in(
+    universe: &[SceneMeta],
+    scenes: &[Scene],
+    cfg: &EvalConfig,
+    backends: &BackendFactory,
+    progress: &ProgressBar,
+) -> Result<Report, EvalError> {
+    let ShardAttempts { mut attempts, positions, total, digest } = shard_attempts(universe, cfg)?;
+    for a in &mut attempts {
+        a.scene_index = scenes.iter().position(|s| s.name == a.scene).ok_or_else(|| {
+            EvalError::Input(format!("scene `{}` is in the attempt list but was not loaded", a.scene))
+        })?;
+    }
+    let settings = cfg.settings();
+    let mut names: Vec<String> = universe.iter().map(|s| s.name.clone()).collect();
+    names.sort();
+    let (cases, timing, plot_errors) = run_attempts(scenes, &attempts, cfg, backends, progress)?;
+    if let Some(sh) = cfg.shard {
+        let record = shard::ShardRecord {
+            format: shard::RECORD_FORMAT.into(),
+            version: shard::RECORD_VERSION,
+            shard: sh,
+            settings: settings.clone(),
+            scenes: names.clone(),
+            attempts_total: total,
+            attempts_digest: digest,
+            attempts: attempts
+                .iter()
+                .zip(&positions)
+                .map(|(a, &position)| shard::RecordedAttempt { id: a.id(), position, seed: a.seed })
+                .collect(),
+            timing: timing.clone(),
+            plot_errors: plot_errors.clone(),
+        };
+        scene::format::write_json_pretty(&record.path(&cfg.out), &record)?;
+        return Ok(report::build(names, &settings, attempts.len(), cases, timing, plot_errors));
+    }
+    let report = report::build(names, &settings, total, cases, timing, plot_errors);
+    report::write(&cfg.out, &report, cfg.plots)?;
+    Ok(report)
+}
+
+/// Scene names and attempt ids name the case files: two equal ones would overwrite each other.
+fn check_unique(scenes: &[SceneMeta], attempts: &[spec::Attempt]) -> Result<(), EvalError> {
+    let mut seen = std::collections::BTreeSet::new();
+    if let Some(s) = scenes.iter().find(|s| !seen.insert(s.name.as_str())) {
+        return Err(EvalError::Input(format!(
+            "two scenes are named `{}`: scene names must be unique (they name the case files)",
+            s.name
+        )));
+    }
+    let mut ids = std::collections::BTreeSet::new();
+    if let Some(a) = attempts.iter().find(|a| !ids.insert(a.id())) {
+        return Err(EvalError::Input(format!(
+            "two attempts share the id `{}` (t0 values closer than 0.05 s?): give t0 at least 0.1 s apart",
+            a.id()
+        )));
+    }
+    Ok(())
+}
+
+type Ran = (Vec<CaseResult>, Vec<AgentTiming>, Vec<String>);
+
+/// Runs `attempts` with every agent (deterministic agents in parallel, LLM agents one case at a
+/// time) and writes each case's files; cases come back in attempt order, then agent order.
+fn run_attempts(
+    scenes: &[Scene],
+    attempts: &[spec::Attempt],
+    cfg: &EvalConfig,
+    backends: &BackendFactory,
+    progress: &ProgressBar,
+) -> Result<Ran, EvalError> {
     let all: Vec<CaseSpec> = attempts.iter().flat_map(|a| cfg.agents.iter().map(|g| a.for_agent(*g))).collect();
     progress.set_length(all.len() as u64);
     let case_dir = cfg.out.join("cases");
@@ -158,125 +291,5 @@ pub fn run_eval(
         }
     }
     results.sort_by_key(|(i, _)| *i);
-    let cases: Vec<CaseResult> = results.into_iter().map(|(_, r)| r).collect();
-    let failures = cases
-        .iter()
-        .filter_map(|r| match &r.status {
-            Status::Failed { stage, reason } => {
-                Some(Failure { case: r.spec.id(), stage: stage.clone(), reason: reason.clone() })
-            }
-            Status::Rejected { reason, .. } => {
-                Some(Failure { case: r.spec.id(), stage: "reply".into(), reason: reason.clone() })
-            }
-            _ => None,
-        })
-        .collect();
-    let report = Report {
-        scenes: scenes.iter().map(|s| s.name.clone()).collect(),
-        seed: cfg.seed,
-        refine_rounds: cfg.case.refine_rounds,
-        window: cfg.case.window,
-        attempts: attempts.len(),
-        table1: tables::table1(&cases, &cfg.agents),
-        table1_paired: paired::table1_paired(&cases, &cfg.agents),
-        why_no_plan: paired::why_no_plan(&cases, &cfg.agents),
-        agents: cfg.agents.clone(),
-        table2: tables::table2(&cases, &cfg.agents),
-        validity: tables::validity(&cases, &cfg.agents),
-        llm_validity: llm_validity::rows(&cases, &cfg.agents),
-        failures,
-        timing,
-        plot_errors,
-        cases,
-    };
-    write_report(&cfg.out, &report, cfg.plots)?;
-    Ok(report)
-}
-
-/// The summary in Markdown: tables, validity, refinement effect, failures, timing.
-pub fn summary_markdown(r: &Report) -> String {
-    let horizon = match r.window.horizon {
-        window::Horizon::Seconds(h) => format!(
-            "{h} s from t0 (clipped at the log's end; after its plan the adversary does `{}`; contact with the ego ends the window)",
-            match r.window.after_plan {
-                window::AfterPlan::Stop => "stop",
-                window::AfterPlan::Hold => "hold",
-            }
-        ),
-        window::Horizon::Plan => "each plan's own end (`--horizon plan`)".into(),
-    };
-    let mut s = format!(
-        "# Corner-case evaluation\n\nScenes: {}. Seed {}. Refinement rounds: {}. Attempts (scene, behaviour, t0) per agent: {}. Horizon: {horizon}.\n\n",
-        r.scenes.join(", "),
-        r.seed,
-        r.refine_rounds,
-        r.attempts
-    );
-    s.push_str("## Table I: controllability and success\n\nEvery agent is given the same attempts. `/ attempts` columns count over **all** attempts (no plan = not a corner case); *verified* = Zone Hit and Success (centre TTC < 1 s) on a physically valid rollout. `as planned`: the agent's first plan; `+ refine`: the best round of closed-loop refinement (`refine rounds`: rounds used beyond the first plan). Per-rollout columns: mean ± std over the attempts with a rollout. `invalid`: executed rollouts that are not physically valid (they count as not successful), then the count per reason (a rollout can have several).\n\n");
-    s.push_str(&tables::table1_markdown(&r.table1));
-    s.push_str("\n### Paired: the attempts every agent planned\n\n");
-    s.push_str(&paired::paired_markdown(&r.table1_paired));
-    s.push_str("\n### Why no plan\n\n");
-    s.push_str(&paired::why_markdown(&r.why_no_plan, &r.agents));
-    s.push_str("\n## Table II: feasibility and ride comfort (agent waypoints vs executed)\n\n");
-    s.push_str(&tables::table2_markdown(&r.table2));
-    if !r.validity.is_empty() {
-        s.push_str("\n## Validity of LLM replies\n\n| agent | zone raw-valid | zone valid after retry | zone repaired | trajectory raw-valid | trajectory after retry | trajectory repaired |\n|---|---|---|---|---|---|---|\n");
-        for v in &r.validity {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {} | {} | {} | {} |",
-                v.agent.map_or("", |a| a.as_str()),
-                v.zone[0],
-                v.zone[1],
-                v.zone[2],
-                v.trajectory[0],
-                v.trajectory[1],
-                v.trajectory[2]
-            );
-        }
-    }
-    if !r.llm_validity.is_empty() {
-        s.push_str("\n## LLM reply validity: the paper's way (first try) and ours\n\n");
-        s.push_str(&llm_validity::markdown(&r.llm_validity));
-    }
-    s.push_str("\n## Failures\n\n");
-    if r.failures.is_empty() {
-        s.push_str("None.\n");
-    }
-    for f in &r.failures {
-        let _ = writeln!(s, "- `{}` ({}): {}", f.case, f.stage, f.reason);
-    }
-    s.push_str("\n## Timing\n\n| agent | cases | wall (s) | cases/s |\n|---|---|---|---|\n");
-    for t in &r.timing {
-        let _ = writeln!(s, "| {} | {} | {:.2} | {:.2} |", t.agent.as_str(), t.cases, t.wall_s, t.cases_per_s);
-    }
-    if !r.plot_errors.is_empty() {
-        let _ = writeln!(s, "\n{} plots could not be drawn; first: {}", r.plot_errors.len(), r.plot_errors[0]);
-    }
-    s
-}
-
-fn write_report(out: &Path, r: &Report, plots: bool) -> Result<(), EvalError> {
-    let w = |name: &str, text: String| scene::write_file_atomic(&out.join(name), text.as_bytes());
-    w("table1.md", tables::table1_markdown(&r.table1))?;
-    w("table1.csv", tables::table1_csv(&r.table1))?;
-    w("table1_paired.md", paired::paired_markdown(&r.table1_paired))?;
-    w("table1_paired.csv", paired::paired_csv(&r.table1_paired))?;
-    w("why_no_plan.md", paired::why_markdown(&r.why_no_plan, &r.agents))?;
-    w("table2.md", tables::table2_markdown(&r.table2))?;
-    w("table2.csv", tables::table2_csv(&r.table2))?;
-    if !r.llm_validity.is_empty() {
-        w("table_llm_validity.md", llm_validity::markdown(&r.llm_validity))?;
-        w("table_llm_validity.csv", llm_validity::csv(&r.llm_validity))?;
-    }
-    w("summary.md", summary_markdown(r))?;
-    scene::format::write_json_pretty(&out.join("report.json"), r)?;
-    if plots {
-        // A missing font must not lose the tables: the summary says so.
-        if let Err(e) = plots::table1_bars(&out.join("table1.png"), &r.table1) {
-            tracing::warn!("table1.png: {e}");
-        }
-    }
-    Ok(())
+    Ok((results.into_iter().map(|(_, r)| r).collect(), timing, plot_errors))
 }

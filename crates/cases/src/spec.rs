@@ -1,6 +1,6 @@
 //! Which cases to run: one list of *attempts* (scene x behaviour x analysis time), each with its
-//! own seed derived from the run seed and the attempt's position (so results do not depend on the
-//! order, the number of threads or the agents), run once by every agent.
+//! own seed derived from the run seed and the attempt's identity (so results do not depend on the
+//! order, the number of threads, the agents or the shard), run once by every agent.
 
 use scene::{Behavior, Scene};
 use serde::{Deserialize, Serialize};
@@ -82,13 +82,31 @@ impl std::str::FromStr for T0Spec {
 
 impl T0Spec {
     pub fn times(&self, scene: &Scene) -> Vec<f64> {
+        self.times_for(scene.duration_s())
+    }
+
+    /// The analysis times in a log of `duration` seconds.
+    pub fn times_for(&self, duration: f64) -> Vec<f64> {
         match self {
             T0Spec::List(v) => v.clone(),
             T0Spec::Every(step) => {
-                let duration = scene.duration_s();
                 (1..).map(|k| k as f64 * step).take_while(|t| t + MIN_HORIZON_S <= duration + 1e-9).collect()
             }
         }
+    }
+}
+
+/// What the attempt list needs of a scene: its name and length. A shard run reads every scene's
+/// once to know the whole list, and keeps only the scenes its own attempts use.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneMeta {
+    pub name: String,
+    pub duration_s: f64,
+}
+
+impl SceneMeta {
+    pub fn of(s: &Scene) -> Self {
+        SceneMeta { name: s.name.clone(), duration_s: s.duration_s() }
     }
 }
 
@@ -96,6 +114,8 @@ impl T0Spec {
 /// seed. Every agent is run on the same list of attempts, so every denominator is the same.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Attempt {
+    /// Index into the scenes this run was given (in memory only: not a property of the attempt).
+    #[serde(skip, default)]
     pub scene_index: usize,
     pub scene: String,
     pub behavior: Behavior,
@@ -121,19 +141,30 @@ impl Attempt {
     }
 }
 
-/// Every attempt, in a fixed order (scene, behaviour, t0). The seed depends only on the run seed
-/// and the attempt's position, never on the agent: agents face equal draws.
+/// Every attempt, in a fixed order: scenes by name (whatever order they were given in), then
+/// behaviour (as given), then t0. The seed depends only on the run seed and the attempt's
+/// identity ([`crate::shard::attempt_key`]), never on the agent or on which other attempts run:
+/// agents face equal draws, and a shard draws what the whole run would have.
 pub fn attempts(scenes: &[Scene], behaviours: &[Behavior], t0: &T0Spec, seed: u64) -> Vec<Attempt> {
+    attempts_of(&scenes.iter().map(SceneMeta::of).collect::<Vec<_>>(), behaviours, t0, seed)
+}
+
+/// [`attempts`] from the scenes' names and lengths; `scene_index` indexes `scenes`.
+pub fn attempts_of(scenes: &[SceneMeta], behaviours: &[Behavior], t0: &T0Spec, seed: u64) -> Vec<Attempt> {
+    let mut order: Vec<usize> = (0..scenes.len()).collect();
+    order.sort_by(|&a, &b| scenes[a].name.cmp(&scenes[b].name));
     let mut out = Vec::new();
-    for (si, s) in scenes.iter().enumerate() {
-        for (bi, b) in behaviours.iter().enumerate() {
-            for (ti, t) in t0.times(s).into_iter().enumerate() {
+    for si in order {
+        let s = &scenes[si];
+        for b in behaviours {
+            for t in t0.times_for(s.duration_s) {
+                let key = crate::shard::attempt_key(&s.name, *b, t);
                 out.push(Attempt {
                     scene_index: si,
                     scene: s.name.clone(),
                     behavior: *b,
                     t0_s: t,
-                    seed: seed ^ ((si as u64) << 40) ^ ((bi as u64) << 20) ^ ti as u64,
+                    seed: seed ^ key.rotate_left(17),
                 });
             }
         }
@@ -144,6 +175,8 @@ pub fn attempts(scenes: &[Scene], behaviours: &[Behavior], t0: &T0Spec, seed: u6
 /// One case: an attempt run by one agent.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CaseSpec {
+    /// Index into the scenes this run was given (in memory only: not a property of the case).
+    #[serde(skip, default)]
     pub scene_index: usize,
     pub scene: String,
     pub behavior: Behavior,

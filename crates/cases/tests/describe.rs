@@ -46,6 +46,8 @@ fn a_described_pedestrian_steps_out_in_that_scene_only() {
             requests: read.into_iter().map(|(k, v)| (k, v.request)).collect(),
             check_rollouts: true,
         },
+        shard: None,
+        cli_settings: Default::default(),
     };
     let no_backend = |_: AgentName| -> Result<Box<dyn reason::backend::Backend>, String> { Err("none".into()) };
     let report = run_eval(&scenes, &cfg, &no_backend, &ProgressBar::hidden()).unwrap();

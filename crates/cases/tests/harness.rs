@@ -27,6 +27,8 @@ fn config(out: &Path, simulate: Box<cases::runner::SimulateFn>, plots: bool) -> 
             requests: Default::default(),
             check_rollouts: true,
         },
+        shard: None,
+        cli_settings: Default::default(),
     }
 }
 

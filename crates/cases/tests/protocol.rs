@@ -42,6 +42,8 @@ fn same_attempts_same_window_and_honest_baselines() {
             requests: Default::default(),
             check_rollouts: true,
         },
+        shard: None,
+        cli_settings: Default::default(),
     };
     let r = run_eval(&scenes, &cfg, &no_backend, &ProgressBar::hidden()).unwrap();
     let n = scenes.len() * behaviors.len();

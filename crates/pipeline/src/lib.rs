@@ -1,7 +1,9 @@
 //! `pipeline`: the whole chain for one corner case (`run`: reason -> simulate -> measure ->
 //! export -> render) and the `demo` (synthesise -> priors -> train -> evaluate -> one case per
-//! showcased behaviour -> report), each stage cached by its inputs and settings (`cache`).
+//! showcased behaviour -> report), each stage cached by its inputs and settings (`cache`); and
+//! the batch plan of many logs for a cluster engine (`batch`).
 
+pub mod batch;
 pub mod cache;
 pub mod case;
 pub mod demo;

@@ -1,4 +1,4 @@
-//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --horizon 5 --after-plan stop --out <dir>`
+//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --horizon 5 --after-plan stop [--shard I/N] --out <dir>`
 use cases::runner::CaseConfig;
 use cases::spec::{AgentName, T0Spec};
 use cases::EvalConfig;
@@ -42,6 +42,11 @@ pub struct Args {
     /// whose rollout is valid, hits its zone and succeeds (`cases::choose`).
     #[arg(long)]
     no_rollout_check: bool,
+    /// Run only shard I of N (0-based, `0/4` .. `3/4`): the attempts whose stable key falls in
+    /// it, whatever the order of the scenes. Writes the case files and `shard-I-of-N.json`
+    /// instead of the tables; `carla-gs tables` merges the shards' outputs.
+    #[arg(long)]
+    shard: Option<cases::shard::Shard>,
     #[command(flatten)]
     constraints: super::constraints::ConstraintArgs,
     /// Read once per scene, at its first t0; that scene's attempts use the reading's behaviour.
@@ -60,7 +65,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for d in &a.scenes {
         dirs.extend(scene::format::find_scene_dirs(d)?);
     }
-    let scenes = dirs.iter().map(|d| scene::load_scene(d)).collect::<Result<Vec<_>, _>>()?;
+    // A shard keeps only the scenes its attempts use (without --describe, which reads them all).
+    let lazy = a.shard.is_some() && a.describe.describe.is_none();
+    let mut universe = Vec::with_capacity(dirs.len());
+    let mut scenes = Vec::new();
+    for d in &dirs {
+        let s = scene::load_scene(d)?;
+        universe.push(cases::spec::SceneMeta::of(&s));
+        if !lazy {
+            scenes.push(s);
+        }
+    }
     let agents: Vec<AgentName> =
         a.agents.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?;
     let mut behaviors: Vec<scene::Behavior> = match a.behaviors.as_str() {
@@ -91,6 +106,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         behaviors =
             scene::Behavior::EVERY.into_iter().filter(|b| requests.values().any(|r| r.behavior == *b)).collect();
     }
+    let mut cli_settings = std::collections::BTreeMap::new();
+    cli_settings.insert("physics".to_string(), format!("{:?}", a.physics.backend));
+    if a.physics.backend == super::backend::BackendKind::Carla {
+        cli_settings.insert("carla".into(), format!("{}:{}", a.physics.carla_host, a.physics.carla_port));
+    }
+    if agents.contains(&AgentName::Openai) {
+        cli_settings.insert("openai".into(), format!("{} {}", a.llm.openai_url, a.llm.openai_model));
+    }
+    if agents.contains(&AgentName::Local) {
+        cli_settings.insert("local_model".into(), format!("{:?}", a.llm.model_path));
+    }
+    if let Some(d) = &a.describe.describe {
+        cli_settings.insert("describe".into(), d.clone());
+    }
     let cfg = EvalConfig {
         agents,
         behaviors,
@@ -110,6 +139,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             requests,
             check_rollouts: !a.no_rollout_check,
         },
+        shard: a.shard,
+        cli_settings,
     };
     let llm = a.llm.clone();
     let factory = move |agent: AgentName| -> Result<Box<dyn reason::backend::Backend>, String> {
@@ -119,9 +150,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             other => Err(format!("{} needs no backend", other.as_str())),
         }
     };
+    if lazy {
+        let needed: std::collections::BTreeSet<String> =
+            cases::shard_attempts(&universe, &cfg)?.attempts.into_iter().map(|x| x.scene).collect();
+        for (d, m) in dirs.iter().zip(&universe) {
+            if needed.contains(&m.name) {
+                scenes.push(scene::load_scene(d)?);
+            }
+        }
+    }
     let pb = super::progress::count_bar("cases");
-    let report = cases::run_eval(&scenes, &cfg, &factory, &pb)?;
+    let report = cases::run_eval_in(&universe, &scenes, &cfg, &factory, &pb)?;
     pb.finish_and_clear();
+    if let Some(shard) = a.shard {
+        println!(
+            "shard {shard}: {} attempts x {} agents; wrote {}/{} and cases/ (merge the shards with `carla-gs tables <dirs> --out <dir>`)",
+            report.attempts,
+            report.agents.len(),
+            a.out.display(),
+            shard.record_name()
+        );
+        return Ok(());
+    }
     println!("{}", cases::summary_markdown(&report));
     println!(
         "wrote {}/summary.md, table1.{{md,csv}}, table1_paired.{{md,csv}}, why_no_plan.md, table2.{{md,csv}}, table_llm_validity.{{md,csv}} (LLM agents), report.json and cases/",

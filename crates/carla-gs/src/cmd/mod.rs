@@ -2,6 +2,8 @@
 //! [`NoCase`], the outcome that exits with code 3.
 pub mod asset;
 pub mod backend;
+pub mod batch;
+pub mod bench_cases;
 pub mod constraints;
 pub mod demo;
 pub mod describe;
@@ -20,6 +22,7 @@ pub mod run;
 pub mod simulate;
 pub mod splat;
 pub mod synth;
+pub mod tables;
 
 /// A well-formed request for which no case is possible (no vehicle can perform the behaviour,
 /// or an agent's reply stayed invalid without repair): nothing is written and `main` exits with
