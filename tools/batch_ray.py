@@ -162,7 +162,8 @@ def write_slurm(plan, plan_path, binary, retries, script):
         if exports:
             wrap = f"export {exports}; {wrap}"
         lines.append(f"# {stage}: {len(nodes)} node(s), {cpus} CPU(s), {gpus} GPU(s), {mem:g} GB each")
-        lines.append(f"JOB_{stage.upper()}=$(sbatch {' '.join(opts)} --wrap {shlex.quote(wrap)})")
+        # --parsable prints "id" or "id;cluster": afterok takes the id.
+        lines.append(f"JOB_{stage.upper()}=$(sbatch {' '.join(opts)} --wrap {shlex.quote(wrap)} | cut -d';' -f1)")
         lines.append(f'echo "{stage}: job $JOB_{stage.upper()}"')
     Path(script).write_text("\n".join(lines) + "\n")
     os.chmod(script, 0o755)

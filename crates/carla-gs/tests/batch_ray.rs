@@ -143,3 +143,35 @@ fn ray_runs_a_sharded_plan_into_the_tables_of_one_process() {
     assert_eq!(skipped, outcomes.len(), "{again}");
     assert_eq!(before, std::fs::read(out.join("tables/table1.md")).unwrap());
 }
+
+/// The `--slurm` output: one array job per stage, chained with afterok, valid shell.
+#[test]
+fn slurm_script_has_one_array_job_per_stage() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    std::fs::write(
+        t.join("m.toml"),
+        "[[log]]\nname = \"a\"\ninput = \"a.tfrecord\"\n[[log]]\nname = \"b\"\nscene = \"b\"\n\
+         [train]\ndevice = \"cuda\"\n[eval_cases]\nshards = 3\n",
+    )
+    .unwrap();
+    carla_gs(&["batch", "plan", s(&t.join("m.toml")), "--out", s(&t.join("out"))]);
+    let script = t.join("submit.sh");
+    let o = Command::new("python3")
+        .arg(driver())
+        .args([s(&t.join("out/plan.json")), "--binary", bin(), "--slurm", s(&script)])
+        .output();
+    let Ok(o) = o else {
+        println!("SKIP: no python3");
+        return;
+    };
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(Command::new("bash").arg("-n").arg(&script).status().unwrap().success(), "{text}");
+    let jobs: Vec<&str> = text.lines().filter(|l| l.starts_with("JOB_")).collect();
+    assert_eq!(jobs.len(), 4, "ingest, train, eval_cases, tables:\n{text}");
+    assert!(jobs[0].contains("--array=0-0") && !jobs[0].contains("--dependency"), "{}", jobs[0]);
+    assert!(jobs[1].contains("--gres=gpu:1") && jobs[1].contains("afterok:${JOB_INGEST}"), "{}", jobs[1]);
+    assert!(jobs[2].contains("--array=0-2") && jobs[2].contains("--stage eval_cases --index $SLURM_ARRAY_TASK_ID"));
+    assert!(jobs[3].contains("afterok:${JOB_EVAL_CASES}"), "{}", jobs[3]);
+}

@@ -23,6 +23,9 @@ use std::path::{Path, PathBuf};
 pub const PLAN_FORMAT: &str = "carla-gs-batch-plan";
 pub const PLAN_VERSION: u32 = 1;
 pub const PLAN_FILE: &str = "plan.json";
+/// A command line longer than this may not start (Linux allows 2 MiB of arguments and
+/// environment together).
+pub const MAX_ARGV_BYTES: usize = 1 << 20;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Resources {
@@ -222,6 +225,16 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
                 resources: r,
             });
             dirs.push(dir);
+        }
+        let argv: usize = v.first().map_or(0, |x| x.args.iter().map(|a| a.len() + 1).sum());
+        if argv > MAX_ARGV_BYTES {
+            return Err(BatchError::invalid(
+                &manifest_file,
+                format!(
+                    "[eval_cases]: one sweep's command line would be {argv} bytes (every scene is an argument); \
+                     at most {MAX_ARGV_BYTES} fit: split the logs into several manifests"
+                ),
+            ));
         }
         let shard_ids: Vec<String> = v.iter().map(|x| x.id.clone()).collect();
         push_stage("eval_cases", v, &mut nodes);
