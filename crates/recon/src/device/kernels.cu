@@ -51,12 +51,12 @@ __device__ __forceinline__ const Seg* seg_of(const Seg* segs, int nseg, int o) {
     return segs + lo;
 }
 
-// ---- compose (recon::compose::compose_into): one thread per world row, every run at once ----
+// ---- compose (recon::compose::compose_into): one thread per world row, every run at once;
+// the SH coefficients in compose_sh ----
 
-extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full,
-                                        int kc_act, const float* means, const float* log_scales,
-                                        const float* rots, const float* logits, const float* sh, float* w_means,
-                                        float* w_log_scales, float* w_rots, float* w_logits, float* w_sh) {
+extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __restrict__ segs, const float* means,
+                                        const float* log_scales, const float* rots, const float* logits,
+                                        float* w_means, float* w_log_scales, float* w_rots, float* w_logits) {
     int o = blockIdx.x * blockDim.x + threadIdx.x;
     if (o >= n_world) return;
     const Seg* g = seg_of(segs, nseg, o);
@@ -64,14 +64,11 @@ extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __rest
     size_t i = (size_t)g->src0 + (o - g->dst0);
     const float* m = means + 3 * i;
     const float* q = rots + 4 * i;
-    const float* c = sh + i * kc_full * 3;
-    float* wc = w_sh + (size_t)o * kc_act * 3;
     for (int a = 0; a < 3; a++) w_log_scales[3 * (size_t)o + a] = log_scales[3 * i + a];
     w_logits[o] = logits[i];
     if (!g->moved) {
         for (int a = 0; a < 3; a++) w_means[3 * (size_t)o + a] = m[a];
         for (int a = 0; a < 4; a++) w_rots[4 * (size_t)o + a] = q[a];
-        for (int k = 0; k < kc_act * 3; k++) wc[k] = c[k];
         return;
     }
     for (int a = 0; a < 3; a++)
@@ -80,27 +77,40 @@ extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __rest
     w_rots[4 * (size_t)o + 1] = x.c * q[1] - x.s * q[2];
     w_rots[4 * (size_t)o + 2] = x.c * q[2] + x.s * q[1];
     w_rots[4 * (size_t)o + 3] = x.c * q[3] + x.s * q[0];
-    for (int ko = 0; ko < kc_act; ko++)
-        for (int ch = 0; ch < 3; ch++) {
-            float acc = 0.0f;
-            for (int ki = 0; ki < kc_full; ki++) acc += x.m[ko * 16 + ki] * c[ki * 3 + ch];
-            wc[ko * 3 + ch] = acc;
-        }
+}
+
+// The SH coefficients of compose_rows, one thread per world float (row o, float f of its
+// kc_act * 3): neighbouring threads write neighbouring floats (a thread per row wrote 48 floats
+// 192 bytes apart from its neighbour's).
+extern "C" __global__ void compose_sh(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full, int kc_act,
+                                      const float* sh, float* w_sh) {
+    int width = kc_act * 3;
+    size_t idx = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (idx >= (size_t)n_world * width) return;
+    int o = (int)(idx / width), f = (int)(idx % width);
+    const Seg* g = seg_of(segs, nseg, o);
+    const float* c = sh + ((size_t)g->src0 + (o - g->dst0)) * kc_full * 3;
+    if (!g->moved) {
+        w_sh[idx] = c[f];
+        return;
+    }
+    int ko = f / 3, ch = f % 3;
+    float acc = 0.0f;
+    for (int ki = 0; ki < kc_full; ki++) acc += g->x.m[ko * 16 + ki] * c[ki * 3 + ch];
+    w_sh[idx] = acc;
 }
 
 // ---- back to the models (recon::compose::scatter_gradients), the flattening term and the
 // density statistics (recon::train::Trainer::step, recon::densify::Stats::record); counts[1] is
 // the number of Gaussians drawn, acc[6] collects the sum of their smallest scales. One thread per
-// world row; every lane reaches the warp sum ----
+// world row; every lane reaches the warp sum; the SH gradients in scatter_sh ----
 
-extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full,
-                                        int kc_act, const float* gw_means, const float* gw_log_scales,
-                                        const float* gw_rots, const float* gw_logits, const float* gw_sh,
-                                        const float* gw_mean2d, const int* valid, const float* proj,
+extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __restrict__ segs,
+                                        const float* gw_means, const float* gw_log_scales,
+                                        const float* gw_rots, const float* gw_logits, const float* gw_mean2d, const int* valid, const float* proj,
                                         int proj_floats, int proj_extent, const float* log_scales, float flat_w,
                                         const unsigned* counts, int densifying, float half_side, float* g_means,
-                                        float* g_log_scales, float* g_rots, float* g_logits, float* g_sh,
-                                        float* grad_sum, unsigned* seen, float* max_radius, float* acc) {
+                                        float* g_log_scales, float* g_rots, float* g_logits, float* grad_sum, unsigned* seen, float* max_radius, float* acc) {
     int o = blockIdx.x * blockDim.x + threadIdx.x;
     float e = 0.0f;
     if (o < n_world) {
@@ -109,14 +119,11 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
         size_t i = (size_t)sg->src0 + (o - sg->dst0);
         for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gw_log_scales[3 * (size_t)o + a];
         g_logits[i] = gw_logits[o];
-        const float* gs = gw_sh + (size_t)o * kc_act * 3;
-        float* d = g_sh + i * kc_full * 3;
         const float* gm = gw_means + 3 * (size_t)o;
         const float* gq = gw_rots + 4 * (size_t)o;
         if (!sg->moved) {
             for (int a = 0; a < 3; a++) g_means[3 * i + a] = gm[a];
             for (int a = 0; a < 4; a++) g_rots[4 * i + a] = gq[a];
-            for (int k = 0; k < kc_full * 3; k++) d[k] = k < kc_act * 3 ? gs[k] : 0.0f;
         } else {
             for (int a = 0; a < 3; a++)
                 g_means[3 * i + a] = x.r[a] * gm[0] + x.r[3 + a] * gm[1] + x.r[6 + a] * gm[2];
@@ -124,12 +131,6 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
             g_rots[4 * i + 1] = x.c * gq[1] + x.s * gq[2];
             g_rots[4 * i + 2] = -x.s * gq[1] + x.c * gq[2];
             g_rots[4 * i + 3] = -x.s * gq[0] + x.c * gq[3];
-            for (int ki = 0; ki < kc_full; ki++)
-                for (int ch = 0; ch < 3; ch++) {
-                    float acc = 0.0f;
-                    for (int ko = 0; ko < kc_act; ko++) acc += x.m[ko * 16 + ki] * gs[ko * 3 + ch];
-                    d[ki * 3 + ch] = acc;
-                }
         }
         if (valid[o]) {
             const float* ls = log_scales + 3 * i;
@@ -149,6 +150,27 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
         }
     }
     warp_add(&acc[6], e);
+}
+
+// The SH gradients of scatter_rows, one thread per model float (world row o, float f of its
+// kc_full * 3; coefficients above kc_act get 0), coalesced as in compose_sh.
+extern "C" __global__ void scatter_sh(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full, int kc_act,
+                                      const float* gw_sh, float* g_sh) {
+    int width = kc_full * 3;
+    size_t idx = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (idx >= (size_t)n_world * width) return;
+    int o = (int)(idx / width), f = (int)(idx % width);
+    const Seg* g = seg_of(segs, nseg, o);
+    size_t i = (size_t)g->src0 + (o - g->dst0);
+    const float* gs = gw_sh + (size_t)o * kc_act * 3;
+    float v = 0.0f;
+    if (!g->moved) {
+        if (f < kc_act * 3) v = gs[f];
+    } else {
+        int ki = f / 3, ch = f % 3;
+        for (int ko = 0; ko < kc_act; ko++) v += g->x.m[ko * 16 + ki] * gs[ko * 3 + ch];
+    }
+    g_sh[i * width + f] = v;
 }
 
 // How many Gaussians the forward pass drew, into counts[1].

@@ -9,6 +9,8 @@ use splat_cuda::Gpu;
 pub(crate) struct Kernels {
     pub compose_rows: CudaFunction,
     pub scatter_rows: CudaFunction,
+    pub compose_sh: CudaFunction,
+    pub scatter_sh: CudaFunction,
     pub count_valid: CudaFunction,
     pub photo_l1: CudaFunction,
     pub blur_h: CudaFunction,
@@ -37,6 +39,8 @@ impl Kernels {
         Ok(Kernels {
             compose_rows: f("compose_rows")?,
             scatter_rows: f("scatter_rows")?,
+            compose_sh: f("compose_sh")?,
+            scatter_sh: f("scatter_sh")?,
             count_valid: f("count_valid")?,
             photo_l1: f("photo_l1")?,
             blur_h: f("blur_h")?,
