@@ -4,22 +4,35 @@
 //! user, leaves the road or slides past the friction limit. The simulator is cheap (hundreds of
 //! rollouts a second), so the planner agent's case takes the first candidate, in the planner's
 //! order, whose rollout over the case's window is physically valid, hits its zone and succeeds;
-//! it tries at most [`MAX_ROLLOUTS`] candidates an attempt, and where none at the attempt's t0
-//! succeeds, the same search from later start times within the attempt ([`START_OFFSETS_S`]).
-//! Failing that it keeps the best rollout seen (valid first, then zone hit, success, lower
-//! MinTTC), so a candidate that touches a bystander is never handed over when another would not.
+//! it tries at most [`MAX_ROLLOUTS`] candidates an attempt: first those with a clear predicted
+//! path from every start time within the attempt ([`START_OFFSETS_S`]), then a wider search
+//! ([`Breadth::WIDE`]), then those predicted to touch a bystander ([`choose`]). Failing that it
+//! keeps the best rollout seen (valid first, then zone hit, success, lower MinTTC), so a
+//! candidate that touches a bystander is never handed over when another would not. It also runs
+//! where the planner at t0 itself found nothing (a later start or the wider search may).
+//!
+//! Where **no** rollout tried is physically valid, nothing is handed over: the attempt ends as
+//! [`Choice::Refused`] with the count of rollouts tried and of each invalidity reason (a corner
+//! case that crashes into a bystander or leaves the road is not one the ego can be tested on),
+//! and the harness records it as "no plan" with that reason, so it stays in every denominator.
 //! Every rollout tried is counted in the case's `how`.
 
 use crate::runner::{cmp_rank, execute, CaseConfig};
 use crate::tables::verified;
 use metrics::CaseMetrics;
-use reason::agents::{plan_of_candidate, ranked_candidates};
+use reason::agents::{plan_of_candidate, ranked_candidates, ranked_candidates_with};
+use reason::planner::{Breadth, Candidate};
 use reason::world::World;
 use reason::ReasonOptions;
 use scene::{Plan, Scene};
+use std::collections::BTreeMap;
 
 /// Rollouts tried at most for one attempt (over every start time).
 pub const MAX_ROLLOUTS: usize = 48;
+/// Rollouts tried at most of candidates predicted to touch a bystander (the third pass): on the
+/// stress corpus none of them ever came out valid where the clear ones had not, and they were
+/// most of the rollouts of the attempts that are refused.
+pub const MAX_UNCLEAR_ROLLOUTS: usize = 4;
 /// Start times tried after the attempt's t0 (s) when no candidate at t0 succeeds.
 pub const START_OFFSETS_S: [f64; 4] = [0.0, 0.5, 1.0, 1.5];
 
@@ -30,40 +43,120 @@ pub struct Checked {
     pub how: String,
 }
 
-/// The rollout-checked choice for options `o` (the attempt's t0, behaviour and constraints), or
-/// `None` when no start time yields a candidate. A failing rollout stage is an error naming it.
-pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Option<Checked>, String> {
-    let mut best: Option<(Checked, usize, f64)> = None;
-    let mut tried = 0;
+/// What the rollout check decided for one attempt.
+pub enum Choice {
+    /// The chosen plan (the first verified one, else the best valid one).
+    Chosen(Box<Checked>),
+    /// Candidates exist, but every rollout tried is physically invalid: why, in words.
+    Refused(String),
+    /// No start time yields a candidate (the planner's own reason stands).
+    NoCandidate,
+}
+
+/// The opening of a refusal's reason (`paired::why_class` keys on it).
+pub const REFUSED_PREFIX: &str = "positioned and within the limits, but every candidate's rollout is invalid";
+
+/// The search so far: rollouts tried, the best one, invalidity reasons over all of them.
+struct Search<'a> {
+    scene: &'a Scene,
+    cfg: &'a CaseConfig,
+    tried: usize,
+    best: Option<(Checked, usize, f64, &'static str)>,
+    why: BTreeMap<&'static str, usize>,
+}
+
+impl Search<'_> {
+    fn done(&self) -> bool {
+        self.tried >= MAX_ROLLOUTS || self.best.as_ref().is_some_and(|(b, ..)| verified(&b.metrics))
+    }
+
+    /// Rolls out `cands` (ranked) in order until one is verified or the budget is spent.
+    fn try_all<'c>(
+        &mut self,
+        world: &World,
+        o: &ReasonOptions,
+        off: f64,
+        pass: &'static str,
+        cands: impl Iterator<Item = (usize, &'c Candidate)>,
+    ) -> Result<(), String> {
+        for (rank, c) in cands {
+            if self.done() {
+                break;
+            }
+            self.tried += 1;
+            let plan = plan_of_candidate(world, o, c);
+            let executed = execute(self.scene, &plan, self.cfg).map_err(|e| format!("simulate: {e}"))?;
+            let metrics = metrics::evaluate(&executed).map_err(|e| format!("metrics: {e}"))?;
+            for r in &metrics.validity.reasons {
+                *self.why.entry(r.key()).or_default() += 1;
+            }
+            if self.best.as_ref().is_none_or(|(b, ..)| cmp_rank(&metrics, &b.metrics).is_gt()) {
+                self.best = Some((Checked { plan, metrics, how: String::new() }, rank + 1, off, pass));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The rollout-checked choice for options `o` (the attempt's t0, behaviour and constraints), in
+/// three passes over the start times of [`START_OFFSETS_S`], each only while nothing is verified:
+/// 1. the ordinary search's candidates with a clear predicted path;
+/// 2. the wider search's ([`Breadth::WIDE`]: finer TTC, more targets, harder closing) with a
+///    clear predicted path;
+/// 3. the ordinary search's candidates predicted to touch a bystander, at most
+///    [`MAX_UNCLEAR_ROLLOUTS`] (the prediction replays the logged motion and the adversary's
+///    reference, the rollout the tracked car: it can be wrong either way).
+///
+/// A failing rollout stage is an error naming it.
+pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choice, String> {
+    let mut s = Search { scene, cfg, tried: 0, best: None, why: BTreeMap::new() };
+    let mut ordinary = Vec::new();
     for off in START_OFFSETS_S {
         let o2 = ReasonOptions { t0: o.t0 + off, ..o.clone() };
         let Some(world) = World::for_options(scene, &o2) else { break };
-        let Ok(ranked) = ranked_candidates(&world, &o2) else { continue };
-        let budget = MAX_ROLLOUTS.saturating_sub(tried);
-        for (rank, c) in ranked.iter().take(budget).enumerate() {
-            tried += 1;
-            let plan = plan_of_candidate(&world, &o2, c);
-            let executed = execute(scene, &plan, cfg).map_err(|e| format!("simulate: {e}"))?;
-            let metrics = metrics::evaluate(&executed).map_err(|e| format!("metrics: {e}"))?;
-            let done = verified(&metrics);
-            if best.as_ref().is_none_or(|(b, _, _)| cmp_rank(&metrics, &b.metrics).is_gt()) {
-                best = Some((Checked { plan, metrics, how: String::new() }, rank + 1, off));
-            }
-            if done {
-                break;
-            }
-        }
-        if tried >= MAX_ROLLOUTS || best.as_ref().is_some_and(|(b, _, _)| verified(&b.metrics)) {
+        // Err: nobody positioned (the wider search samples the same vehicles) or nothing within
+        // the limits (the wider search may find something).
+        let (ranked, positioned) = match ranked_candidates(&world, &o2) {
+            Ok(r) => (r, true),
+            Err(why) => (Vec::new(), !why.split("; ").all(|r| r.contains("within range is positioned"))),
+        };
+        ordinary.push((off, o2, world, ranked, positioned));
+    }
+    let clear = |c: &&Candidate| c.predicted_contact_with.is_none();
+    for (off, o2, world, ranked, _) in &ordinary {
+        s.try_all(world, o2, *off, "", ranked.iter().enumerate().filter(|(_, c)| clear(c)))?;
+    }
+    for (off, o2, world, _, positioned) in &ordinary {
+        if s.done() {
             break;
         }
+        if !positioned {
+            continue;
+        }
+        let wide = ranked_candidates_with(world, o2, Breadth::WIDE).unwrap_or_default();
+        s.try_all(world, o2, *off, " of the wider search", wide.iter().enumerate().filter(|(_, c)| clear(c)))?;
     }
-    Ok(best.map(|(mut b, rank, off)| {
-        let verdict = if verified(&b.metrics) {
-            "the first valid with zone hit and success"
-        } else {
-            "the best, none valid with zone hit and success"
-        };
-        b.how = format!("rollout-checked: candidate ranked {rank} at t0 + {off:.1} s, {verdict} of {tried} rollouts");
-        b
-    }))
+    let unclear = ordinary.iter().flat_map(|(off, o2, world, ranked, _)| {
+        ranked.iter().enumerate().filter(|(_, c)| !clear(c)).map(move |(k, c)| (*off, o2, world, k, c))
+    });
+    for (off, o2, world, k, c) in unclear.take(MAX_UNCLEAR_ROLLOUTS) {
+        s.try_all(world, o2, off, " (predicted to touch a bystander)", std::iter::once((k, c)))?;
+    }
+    let tried = s.tried;
+    let Some((mut b, rank, off, pass)) = s.best else { return Ok(Choice::NoCandidate) };
+    if !b.metrics.validity.valid {
+        let counts: Vec<String> = s.why.iter().map(|(k, n)| format!("{} {n}", k.replace('_', " "))).collect();
+        return Ok(Choice::Refused(format!(
+            "{REFUSED_PREFIX} ({tried} rollout(s) tried from t0 to t0 + {:.1} s: {}): none handed over",
+            START_OFFSETS_S[START_OFFSETS_S.len() - 1],
+            counts.join(", ")
+        )));
+    }
+    let verdict = if verified(&b.metrics) {
+        "the first valid with zone hit and success"
+    } else {
+        "the best valid, none with zone hit and success"
+    };
+    b.how = format!("rollout-checked: candidate ranked {rank}{pass} at t0 + {off:.1} s, {verdict} of {tried} rollouts");
+    Ok(Choice::Chosen(Box::new(b)))
 }

@@ -162,6 +162,10 @@ pub fn why_class(reason: &str) -> &'static str {
     } else if reason.starts_with("no vehicle") && reason.contains("within range is positioned") {
         // "no vehicle" or "no vehicle or cyclist" (the behaviours cyclists can also perform).
         "no feasible: no vehicle positioned for the behaviour"
+    } else if reason.contains("the ego stands still") {
+        "no feasible: positioned, but the ego stands still"
+    } else if reason.starts_with(crate::choose::REFUSED_PREFIX) {
+        "no feasible: positioned, but every rollout invalid"
     } else if reason.contains("none can reach") {
         "no feasible: positioned, but no trajectory within the limits"
     } else if reason.starts_with("no pedestrian within range") {
@@ -220,5 +224,9 @@ mod tests {
         assert_eq!(why_class(cut_in), "no feasible: no vehicle positioned for the behaviour");
         let step_out = "no pedestrian within range is positioned for step_out (a pedestrian ...)";
         assert_eq!(why_class(step_out), "no feasible: no pedestrian positioned for the behaviour");
+        let refused = format!("{} (3 rollout(s) tried ...): none handed over", crate::choose::REFUSED_PREFIX);
+        assert_eq!(why_class(&refused), "no feasible: positioned, but every rollout invalid");
+        let still = "1 vehicle(s) are positioned for sudden_cut_in, but the ego stands still (below 1 m/s) at ...";
+        assert_eq!(why_class(still), "no feasible: positioned, but the ego stands still");
     }
 }

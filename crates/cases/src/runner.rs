@@ -11,6 +11,7 @@
 //! Success is false), so it is refined like a miss. Errors of any stage end the case as a
 //! failure with its reason.
 
+use crate::choose::Choice;
 use crate::spec::{AgentName, CaseSpec};
 use crate::window::{self, Horizon, Window};
 use metrics::CaseMetrics;
@@ -248,25 +249,31 @@ pub fn run_case(
     let fail = |stage: &str, reason: String| {
         (CaseResult { spec: spec.clone(), status: Status::Failed { stage: stage.into(), reason } }, None)
     };
-    let (mut plan, mut validity) =
-        match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
-            Err(e) => return fail("reason", e),
-            Ok(Outcome::NoFeasible { reason }) => {
-                return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
-            }
-            Ok(Outcome::Rejected { stats, reason }) => {
-                return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
-            }
-            Ok(Outcome::Plan { plan, stats }) => (plan, stats),
-        };
-    let mut how = "agent".to_string();
-    if spec.agent == AgentName::Planner && cfg.check_rollouts {
+    let first = match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+        Err(e) => return fail("reason", e),
+        Ok(Outcome::Rejected { stats, reason }) => {
+            return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
+        }
+        Ok(x) => x,
+    };
+    // The planner's choice checked by rollouts, also where nothing at t0 itself was feasible
+    // (a later start time or the wider search may be).
+    let checked = if spec.agent == AgentName::Planner && cfg.check_rollouts {
         match crate::choose::choose(scene, &o, cfg) {
-            Ok(Some(c)) => (plan, how) = (c.plan, c.how),
-            Ok(None) => {}
+            Ok(c) => Some(c),
             Err(e) => return fail("simulate", format!("checking the planner's candidates: {e}")),
         }
-    }
+    } else {
+        None
+    };
+    let (mut plan, mut validity, mut how) = match (first, checked) {
+        (_, Some(Choice::Chosen(c))) => (c.plan, None, c.how),
+        (_, Some(Choice::Refused(reason))) | (Outcome::NoFeasible { reason }, _) => {
+            return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
+        }
+        (Outcome::Plan { plan, stats }, _) => (plan, stats, "agent".to_string()),
+        (Outcome::Rejected { .. }, _) => unreachable!("returned above"),
+    };
     let mut strategy = 1; // the planner's next refinement strategy
     let mut rounds: Vec<Round> = Vec::new();
     let mut best_exec: Option<Executed> = None;

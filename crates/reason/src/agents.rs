@@ -10,8 +10,8 @@
 
 use crate::backend::{Backend, Capability};
 use crate::chat::{invalid, repaired, Chat};
-use crate::constraints::search;
-use crate::planner::Candidate;
+use crate::constraints::{search, search_with};
+use crate::planner::{Breadth, Candidate};
 use crate::prompt::{zone_system, zone_user};
 use crate::reply::{parse_zone, Violation, ZoneReply};
 use crate::summary::{describe, SummaryOptions};
@@ -46,11 +46,16 @@ pub fn best_candidate(world: &World, o: &ReasonOptions) -> Result<Candidate, Str
 /// first (a stable sort by score: equal scores keep the behaviour's own order); `Err` says why
 /// there is none.
 pub fn ranked_candidates(world: &World, o: &ReasonOptions) -> Result<Vec<Candidate>, String> {
+    ranked_candidates_with(world, o, Breadth::DEFAULT)
+}
+
+/// [`ranked_candidates`] from a search sampled as `breadth` says.
+pub fn ranked_candidates_with(world: &World, o: &ReasonOptions, breadth: Breadth) -> Result<Vec<Candidate>, String> {
     let behaviours: Vec<Behavior> = o.behavior.map_or_else(|| auto_behaviours(world), |b| vec![b]);
     let mut reasons = Vec::new();
     let mut all: Vec<Candidate> = Vec::new();
     for b in behaviours {
-        match search(world, b, o) {
+        match search_with(world, b, o, breadth) {
             Ok(c) => all.extend(c),
             Err(e) => reasons.push(e),
         }

@@ -40,38 +40,77 @@ fn cuboid(length: f64, width: f64) -> (Cuboid, f64) {
     (Cuboid::new(Vector::new(length / 2.0, width / 2.0)), 0.5 * length.hypot(width))
 }
 
+/// Whether `a` has a logged pose within [t0, t1] inside the box [lo, hi].
+fn logged_within(a: &Actor, t0: f64, t1: f64, lo: DVec2, hi: DVec2) -> bool {
+    a.runs.iter().any(|r| {
+        let from = r.partition_point(|p| p.t < t0);
+        r[from..].iter().take_while(|p| p.t <= t1).any(|p| {
+            let q = DVec2::new(p.x, p.y);
+            q.cmpge(lo).all() && q.cmple(hi).all()
+        })
+    })
+}
+
+/// The time span and the area (bounding box grown by `REACH`) of `waypoints`.
+fn span(waypoints: &[Waypoint]) -> Option<(f64, f64, DVec2, DVec2)> {
+    let (first, last) = (waypoints.first()?, waypoints.last()?);
+    let lo = waypoints.iter().fold(DVec2::splat(f64::INFINITY), |m, w| m.min(DVec2::new(w.x, w.y)));
+    let hi = waypoints.iter().fold(DVec2::splat(f64::NEG_INFINITY), |m, w| m.max(DVec2::new(w.x, w.y)));
+    Some((first.t - 0.5, last.t + 0.5, lo - REACH, hi + REACH))
+}
+
+/// m: boxes up to a bus length on either side, and motion between samples.
+const REACH: f64 = 20.0;
+
 impl Bystanders {
-    /// Actors near `waypoints` (within their span plus the largest box) other than `adversary`
-    /// and the ego.
-    pub fn near(scene: &Scene, adversary: &str, waypoints: &[Waypoint]) -> Self {
-        let (Some(first), Some(last)) = (waypoints.first(), waypoints.last()) else {
-            return Bystanders { actors: vec![] };
-        };
-        let (t0, t1) = (first.t, last.t);
-        let lo = waypoints.iter().fold(DVec2::splat(f64::INFINITY), |m, w| m.min(DVec2::new(w.x, w.y)));
-        let hi = waypoints.iter().fold(DVec2::splat(f64::NEG_INFINITY), |m, w| m.max(DVec2::new(w.x, w.y)));
-        let reach = 20.0; // m: boxes up to a bus length on either side, and motion between samples
+    /// Every logged actor but the ego that is logged at or after `t_from` (its runs and box):
+    /// built once per world ([`crate::world::World::bystanders`]) and narrowed per path by
+    /// [`Bystanders::first_contact_near`].
+    pub fn all(scene: &Scene, t_from: f64) -> Self {
         let ego = scene.ego.track_id.as_deref();
         let actors = scene
             .tracks
             .iter()
-            .filter(|t| t.id != adversary && Some(t.id.as_str()) != ego)
-            .filter(|t| {
-                t.valid_states().any(|s| {
-                    let ts = scene.frames[s.frame].timestamp_s;
-                    let p = DVec2::new(s.center.x, s.center.y);
-                    ts >= t0 - 0.5 && ts <= t1 + 0.5 && p.cmpge(lo - reach).all() && p.cmple(hi + reach).all()
-                })
-            })
+            .filter(|t| Some(t.id.as_str()) != ego)
             .filter_map(|t| {
                 let [l, w, _] = t.median_size_lwh();
-                (l > 0.0 && w > 0.0).then(|| {
+                if l <= 0.0 || w <= 0.0 {
+                    return None;
+                }
+                let runs: Vec<Vec<Pose2>> =
+                    scene.track_segments(t).into_iter().filter(|r| r.last().is_some_and(|p| p.t >= t_from)).collect();
+                (!runs.is_empty()).then(|| {
                     let (cuboid, radius) = cuboid(l, w);
-                    Actor { id: t.id.clone(), class: t.class, runs: scene.track_segments(t), cuboid, radius }
+                    Actor { id: t.id.clone(), class: t.class, runs, cuboid, radius }
                 })
             })
             .collect();
         Bystanders { actors }
+    }
+
+    /// Actors near `waypoints` (logged within their span, within their area plus the largest
+    /// box) other than `adversary` and the ego.
+    pub fn near(scene: &Scene, adversary: &str, waypoints: &[Waypoint]) -> Self {
+        let Some((t0, t1, lo, hi)) = span(waypoints) else { return Bystanders { actors: vec![] } };
+        let mut all = Self::all(scene, t0);
+        all.actors.retain(|a| a.id != adversary && logged_within(a, t0, t1, lo, hi));
+        all
+    }
+
+    /// [`Bystanders::first_contact`] among the actors near `waypoints` other than `adversary`
+    /// (as [`Bystanders::near`] selects them, from this set).
+    pub fn first_contact_near(
+        &self,
+        adversary: &str,
+        waypoints: &[Waypoint],
+        heading0: f64,
+        length: f64,
+        width: f64,
+    ) -> Option<(String, f64)> {
+        let (t0, t1, lo, hi) = span(waypoints)?;
+        let near: Vec<&Actor> =
+            self.actors.iter().filter(|a| a.id != adversary && logged_within(a, t0, t1, lo, hi)).collect();
+        contact_among(&near, waypoints, heading0, length, width)
     }
 
     /// Without the actors of `class` (a pedestrian among pedestrians: people walk in groups,
@@ -90,29 +129,45 @@ impl Bystanders {
         length: f64,
         width: f64,
     ) -> Option<(String, f64)> {
-        let (me_box, me_radius) = cuboid(length, width);
-        let mut heading = heading0;
-        for (k, w) in waypoints.iter().enumerate() {
-            if let Some(next) = waypoints.get(k + 1) {
-                let d = DVec2::new(next.x - w.x, next.y - w.y);
-                if d.length() > HOLD_HEADING_BELOW * (next.t - w.t) {
-                    heading = d.to_angle();
-                }
-            }
-            let me = PPose::new(Vector::new(w.x, w.y), heading);
-            for a in &self.actors {
-                let Some(p) = a.runs.iter().find_map(|r| sample_series(r, w.t)) else { continue };
-                if (p.x - w.x).hypot(p.y - w.y) > me_radius + a.radius {
-                    continue;
-                }
-                let other = PPose::new(Vector::new(p.x, p.y), p.heading);
-                if intersection_test(&me, &me_box, &other, &a.cuboid).is_ok_and(|hit| hit.intersecting) {
-                    return Some((a.id.clone(), w.t));
-                }
+        let all: Vec<&Actor> = self.actors.iter().collect();
+        contact_among(&all, waypoints, heading0, length, width)
+    }
+}
+
+/// The first of `actors` (id, time) the box `length` x `width` touches moving along
+/// `waypoints`, starting with body heading `heading0`.
+fn contact_among(
+    actors: &[&Actor],
+    waypoints: &[Waypoint],
+    heading0: f64,
+    length: f64,
+    width: f64,
+) -> Option<(String, f64)> {
+    if actors.is_empty() {
+        return None;
+    }
+    let (me_box, me_radius) = cuboid(length, width);
+    let mut heading = heading0;
+    for (k, w) in waypoints.iter().enumerate() {
+        if let Some(next) = waypoints.get(k + 1) {
+            let d = DVec2::new(next.x - w.x, next.y - w.y);
+            if d.length() > HOLD_HEADING_BELOW * (next.t - w.t) {
+                heading = d.to_angle();
             }
         }
-        None
+        let me = PPose::new(Vector::new(w.x, w.y), heading);
+        for a in actors {
+            let Some(p) = a.runs.iter().find_map(|r| sample_series(r, w.t)) else { continue };
+            if (p.x - w.x).hypot(p.y - w.y) > me_radius + a.radius {
+                continue;
+            }
+            let other = PPose::new(Vector::new(p.x, p.y), p.heading);
+            if intersection_test(&me, &me_box, &other, &a.cuboid).is_ok_and(|hit| hit.intersecting) {
+                return Some((a.id.clone(), w.t));
+            }
+        }
     }
+    None
 }
 
 #[cfg(test)]

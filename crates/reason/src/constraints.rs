@@ -7,7 +7,7 @@
 //! sudden_braking: it is a pedestrian, and pedestrians can perform step_out only").
 
 use crate::behavior::{candidate_zones, class_can, class_refusal, spec, who_performs};
-use crate::planner::{search_vehicle_zone, ttc_grid, Candidate};
+use crate::planner::{search_vehicle_zone_with, ttc_grid_step, Breadth, Candidate};
 use crate::validate::snap_ttc;
 use crate::world::World;
 use crate::ReasonOptions;
@@ -100,12 +100,17 @@ pub fn check(scene: &Scene, world: &World, o: &ReasonOptions) -> Result<(), Stri
 /// Every feasible candidate for `b` under the constraints, best first (the planner's
 /// [`crate::planner::search`] when there are none). `Err` names what failed.
 pub fn search(world: &World, b: Behavior, o: &ReasonOptions) -> Result<Vec<Candidate>, String> {
+    search_with(world, b, o, Breadth::DEFAULT)
+}
+
+/// [`search`] sampled as `breadth` says (the rollout check's wider pass).
+pub fn search_with(world: &World, b: Behavior, o: &ReasonOptions, breadth: Breadth) -> Result<Vec<Candidate>, String> {
     if o.zone.is_none() && o.ttc_s.is_none() {
-        return crate::planner::search(world, b, o.layout, o.dt, o.seed);
+        return crate::planner::search_with(world, b, o.layout, o.dt, o.seed, breadth);
     }
     let grid = match o.ttc_s {
         Some(t) => snap_ttc(t, o.dt, world.horizon()).into_iter().collect(),
-        None => ttc_grid(world, b, o.dt),
+        None => ttc_grid_step(world, b, o.dt, breadth.ttc_step_s),
     };
     if grid.is_empty() {
         return Err(format!("the log ends {:.1} s after t0, before any TTC {} allows", world.horizon(), b.as_str()));
@@ -117,7 +122,7 @@ pub fn search(world: &World, b: Behavior, o: &ReasonOptions) -> Result<Vec<Candi
         let Ok(zones) = candidate_zones(world, v, b) else { continue };
         for zone in zones.into_iter().filter(|z| o.zone.is_none_or(|q| q == *z)) {
             eligible += 1;
-            out.extend(search_vehicle_zone(world, v, b, zone, o.layout, &grid, o.dt, &mut rng));
+            out.extend(search_vehicle_zone_with(world, v, b, zone, o.layout, &grid, o.dt, &mut rng, breadth));
         }
     }
     if out.is_empty() {

@@ -27,10 +27,11 @@
 //! is returned when nothing better exists and its miss is counted by the evaluation.
 
 use crate::behavior::{candidate_zones, spec, EndPolicy};
-use crate::clearance::Bystanders;
+use crate::early_lateral::EarlyLateral;
 use crate::from_rest::FromRest;
 use crate::lane_motion::LaneMotion;
 use crate::quintic::{limits, trackability, End, Quintic};
+pub use crate::sampling::{closing_ttcs, ttc_grid, ttc_grid_step, Breadth, Shape, MIN_EGO_SPEED_AHEAD};
 use crate::target::{on_lane_centre, sample_target};
 use crate::world::{Kin, Vehicle, World};
 use rand::SeedableRng;
@@ -54,9 +55,6 @@ pub const PLAN_MAX_CURVATURE_RATE: f64 = 1.0;
 pub const START_ACCEL: f64 = 2.0;
 /// Aimed centre TTC at the target (s): the end velocity is chosen to close in at this rate.
 pub const AIM_TTC_S: f64 = 0.6;
-const TTC_STEP_S: f64 = 0.5;
-const TARGETS_PER_CANDIDATE: usize = 3;
-
 /// A planned trajectory and what it predicts, measured like the metrics (0.1 s grid from t0).
 #[derive(Clone, Debug)]
 pub struct Planned {
@@ -167,7 +165,27 @@ pub fn trajectory_to_aim(
     dt: f64,
     aim_ttc: f64,
 ) -> Option<Planned> {
+    trajectory_shaped(world, v, b, target, ttc, dt, aim_ttc, Shape::Quintic)
+}
+
+/// [`trajectory_to_aim`] with a straight-line path of `shape`; `Shape::EarlyLateral` applies
+/// only to a moving vehicle in a scene without lanes and an end velocity along the ego's
+/// heading (`None` otherwise: the other shapes cover it).
+#[allow(clippy::too_many_arguments)]
+pub fn trajectory_shaped(
+    world: &World,
+    v: &Vehicle,
+    b: Behavior,
+    target: DVec2,
+    ttc: f64,
+    dt: f64,
+    aim_ttc: f64,
+    shape: Shape,
+) -> Option<Planned> {
     if v.class != scene::ObjectClass::Vehicle {
+        if shape != Shape::Quintic {
+            return None;
+        }
         // Pedestrians and cyclists: their own motion and limits.
         return crate::vru::trajectory_to(world, v, b, target, ttc, dt, aim_ttc);
     }
@@ -175,6 +193,9 @@ pub fn trajectory_to_aim(
     let ego_end = world.ego_kin(t_end);
     let v_end = end_velocity(end_policy(b, world, target, ttc), &ego_end, target, v, aim_ttc);
     let body = DVec2::new(v.now.heading.cos(), v.now.heading.sin());
+    if shape == Shape::EarlyLateral && (world.lanes.is_some() || v.now.speed() < 1.0) {
+        return None;
+    }
     // Along the adversary's lane where the map has one near it; else a straight-line quintic.
     let lane = match &world.lanes {
         Some(lanes) => LaneMotion::new(lanes, v, target, v_end, ttc, START_ACCEL),
@@ -190,6 +211,11 @@ pub fn trajectory_to_aim(
             let speed = v.now.v.dot(body).max(0.0);
             let m = FromRest::new(v.now.p, v.now.heading, speed, START_ACCEL, target, v_end, ttc)?;
             (Motion::FromRest(m), PlanPath::StraightLine, why)
+        }
+        Err(why) if shape == Shape::EarlyLateral => {
+            let heading = world.ego_pose(t_end).heading;
+            let m = EarlyLateral::new(v.now.p, v.now.v, target, v_end, ttc, heading)?;
+            (Motion::Early(m), PlanPath::StraightLine, format!("{why}; sideways first"))
         }
         Err(why) => (
             Motion::Quintic(Quintic::new(
@@ -231,8 +257,7 @@ pub fn trajectory_to_aim(
             center_ttc(e.p, e.v, DVec2::new(w.x, w.y), motion.velocity(s))
         })
         .fold(f64::INFINITY, f64::min);
-    let contact_with =
-        Bystanders::near(world.scene, &v.id, &waypoints).first_contact(&waypoints, v.now.heading, v.length, v.width);
+    let contact_with = world.bystanders().first_contact_near(&v.id, &waypoints, v.now.heading, v.length, v.width);
     Some(Planned { waypoints, min_ttc, peak_accel: l.max_accel, closest_local: closest, contact_with, path, path_note })
 }
 
@@ -241,6 +266,7 @@ enum Motion {
     Lane(Box<LaneMotion>),
     Quintic(Quintic),
     FromRest(FromRest),
+    Early(EarlyLateral),
 }
 
 impl Motion {
@@ -249,6 +275,7 @@ impl Motion {
             Motion::Lane(m) => m.waypoints(t0, dt),
             Motion::Quintic(q) => q.waypoints(t0, dt),
             Motion::FromRest(m) => m.waypoints(t0, dt),
+            Motion::Early(m) => m.waypoints(t0, dt),
         }
     }
 
@@ -257,29 +284,29 @@ impl Motion {
             Motion::Lane(m) => m.velocity(s),
             Motion::Quintic(q) => q.velocity(s),
             Motion::FromRest(m) => m.velocity(s),
+            Motion::Early(m) => m.velocity(s),
         }
     }
 }
 
-/// TTC values the search tries for a behaviour within the log's horizon.
-pub fn ttc_grid(world: &World, b: Behavior, dt: f64) -> Vec<f64> {
-    let s = spec(b);
-    let max = s.ttc_max.min(world.horizon());
-    let mut out = Vec::new();
-    let mut t = s.ttc_min;
-    while t <= max + 1e-9 {
-        out.push((t / dt).round() * dt);
-        t += TTC_STEP_S;
-    }
-    out
-}
-
 /// Every feasible candidate for behaviour `b`, best first. `Err` explains why there is none.
 pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64) -> Result<Vec<Candidate>, String> {
+    search_with(world, b, layout, dt, seed, Breadth::DEFAULT)
+}
+
+/// [`search`] sampled as `breadth` says.
+pub fn search_with(
+    world: &World,
+    b: Behavior,
+    layout: ZoneLayout,
+    dt: f64,
+    seed: u64,
+    breadth: Breadth,
+) -> Result<Vec<Candidate>, String> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut out = Vec::new();
     let mut eligible = 0;
-    let grid = ttc_grid(world, b, dt);
+    let grid = ttc_grid_step(world, b, dt, breadth.ttc_step_s);
     if grid.is_empty() {
         return Err(format!(
             "the log ends {:.1} s after t0, shorter than {}'s shortest TTC {:.1} s",
@@ -288,19 +315,21 @@ pub fn search(world: &World, b: Behavior, layout: ZoneLayout, dt: f64, seed: u64
             spec(b).ttc_min
         ));
     }
+    let closing = closing_ttcs(world, b, &grid);
     for v in world.actors() {
         let Ok(zones) = candidate_zones(world, v, b) else { continue };
         eligible += 1;
         for zone in zones {
-            out.extend(search_vehicle_zone(world, v, b, zone, layout, &grid, dt, &mut rng));
+            out.extend(search_vehicle_zone_with(world, v, b, zone, layout, &closing, dt, &mut rng, breadth));
         }
     }
     if out.is_empty() {
+        let who = crate::behavior::who_performs(b);
         return Err(if eligible == 0 {
-            let who = crate::behavior::who_performs(b);
             format!("no {who} within range is positioned for {} ({})", b.as_str(), spec(b).description)
+        } else if closing.is_empty() {
+            format!("{eligible} {who}(s) are positioned for {}, but the ego stands still (below {MIN_EGO_SPEED_AHEAD} m/s) at every target time: ending slower ahead of it, nothing closes in", b.as_str())
         } else {
-            let who = crate::behavior::who_performs(b);
             format!("{eligible} {who}(s) are positioned for {} but none can reach a target zone within the speed, acceleration, jerk, yaw-rate and curvature limits", b.as_str())
         });
     }
@@ -320,11 +349,29 @@ pub fn search_vehicle_zone(
     dt: f64,
     rng: &mut ChaCha8Rng,
 ) -> Vec<Candidate> {
+    search_vehicle_zone_with(world, v, b, zone, layout, grid, dt, rng, Breadth::DEFAULT)
+}
+
+/// [`search_vehicle_zone`] sampled as `breadth` says (the TTC grid is the caller's).
+#[allow(clippy::too_many_arguments)]
+pub fn search_vehicle_zone_with(
+    world: &World,
+    v: &Vehicle,
+    b: Behavior,
+    zone: Zone,
+    layout: ZoneLayout,
+    grid: &[f64],
+    dt: f64,
+    rng: &mut ChaCha8Rng,
+    breadth: Breadth,
+) -> Vec<Candidate> {
     let mut out = Vec::new();
-    for &ttc in grid {
-        for _ in 0..TARGETS_PER_CANDIDATE {
-            let target = on_lane_centre(world, zone, layout, ttc, sample_target(world, zone, layout, ttc, rng));
-            if let Some(p) = trajectory_to(world, v, b, target, ttc, dt) {
+    let pairs = grid.iter().flat_map(|&ttc| (0..breadth.targets).map(move |_| ttc));
+    for ttc in pairs {
+        let target = on_lane_centre(world, zone, layout, ttc, sample_target(world, zone, layout, ttc, rng));
+        let shaped = breadth.aim_ttcs.iter().flat_map(|&aim| breadth.shapes.iter().map(move |&sh| (aim, sh)));
+        for (aim, shape) in shaped {
+            if let Some(p) = trajectory_shaped(world, v, b, target, ttc, dt, aim, shape) {
                 // A predicted miss ranks last (see `score`) but stays: the metric decides, not the search.
                 let hit = zone_rect(zone, layout, world.ego_length, world.ego_width).contains(p.closest_local);
                 out.push(Candidate {

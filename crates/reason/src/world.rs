@@ -73,6 +73,8 @@ pub struct World<'a> {
     pub t_last: f64,
     /// The map's lanes, when it has some (map-aware plans, [`crate::lane_motion`]).
     pub lanes: Option<crate::lanes::Lanes<'a>>,
+    /// Every logged actor from t0 on, for clearance checks: built on first use, once per world.
+    bystanders: std::sync::OnceLock<crate::clearance::Bystanders>,
 }
 
 fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
@@ -117,6 +119,7 @@ impl<'a> World<'a> {
             ego_series,
             vehicles,
             vulnerable,
+            bystanders: std::sync::OnceLock::new(),
         })
     }
 
@@ -128,6 +131,11 @@ impl<'a> World<'a> {
             w.vulnerable.retain(|v| &v.id == id);
         }
         Some(w)
+    }
+
+    /// Every logged actor but the ego from t0 on ([`crate::clearance::Bystanders::all`]).
+    pub fn bystanders(&self) -> &crate::clearance::Bystanders {
+        self.bystanders.get_or_init(|| crate::clearance::Bystanders::all(self.scene, self.t0 - 0.5))
     }
 
     /// Every candidate adversary: the vehicles (nearest first), then the pedestrians and cyclists.
