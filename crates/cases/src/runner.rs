@@ -177,7 +177,13 @@ fn feedback(plan: &Plan, e: &Executed, m: &CaseMetrics) -> String {
 const MAX_PLANNER_STRATEGY: usize = 8;
 
 /// The planner's refinement strategy `r` (1-based); `None` if it has nothing to offer.
-fn refine_planner(scene: &Scene, o: &ReasonOptions, r: usize, last: &Plan, e: &Executed) -> Option<(Plan, String)> {
+pub(crate) fn refine_planner(
+    scene: &Scene,
+    o: &ReasonOptions,
+    r: usize,
+    last: &Plan,
+    e: &Executed,
+) -> Option<(Plan, String)> {
     let world = World::for_options(scene, &ReasonOptions { t0: last.start_time_s, ..o.clone() })?;
     if r == 1 {
         let target = DVec2::from(last.target?);
