@@ -134,7 +134,8 @@ fn actors_outside_their_lifespan_are_not_drawn_unless_posed() {
 #[test]
 fn a_kept_background_composes_what_a_fresh_composition_does() {
     let (sc, m) = (scene(), model());
-    let mut kept = Composed { reuse_background: true, ..Default::default() };
+    let mut kept = Composed::default();
+    kept.reuse_background = true;
     let hidden = |_: usize| Some(None);
     // Times, degrees and layers in an order that exercises every way in and out of the kept rows.
     for (t, degree, layers) in [
