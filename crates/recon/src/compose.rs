@@ -34,17 +34,11 @@ pub struct Part {
 pub struct Composed {
     pub world: Gaussians,
     pub parts: Vec<Part>,
-    /// Set by a caller whose model does not change between calls (frames of a video): the
-    /// background rows, the bulk of a real street, are copied once and kept while the background's
-    /// size and the SH degree stay; only the actors are composed again. Never set it while training.
-    pub reuse_background: bool,
-    /// The background rows `world` holds (its length, SH degree), when `reuse_background`.
-    kept: Option<(usize, usize)>,
 }
 
 impl Default for Composed {
     fn default() -> Self {
-        Composed { world: crate::model::empty(0), parts: vec![], reuse_background: false, kept: None }
+        Composed { world: crate::model::empty(0), parts: vec![] }
     }
 }
 
@@ -79,22 +73,16 @@ pub fn compose_into(
     out: &mut Composed,
 ) {
     let k = sh_coeffs(active_degree) * 3;
-    let bg = &model.background;
-    let keep = out.reuse_background
-        && layers != Layers::ActorsOnly
-        && out.kept == Some((bg.len(), active_degree))
-        && out.parts.first().is_some_and(|p| p.actor.is_none());
     let w = &mut out.world;
     w.sh_degree = active_degree;
-    let rows = if keep { bg.len() } else { 0 };
-    w.means.truncate(rows);
-    w.log_scales.truncate(rows);
-    w.rotations.truncate(rows);
-    w.opacity_logits.truncate(rows);
-    w.sh.truncate(rows * k);
-    out.parts.truncate(usize::from(keep));
-    out.kept = None;
-    if layers != Layers::ActorsOnly && !keep {
+    w.means.clear();
+    w.log_scales.clear();
+    w.rotations.clear();
+    w.opacity_logits.clear();
+    w.sh.clear();
+    out.parts.clear();
+    if layers != Layers::ActorsOnly {
+        let bg = &model.background;
         w.means.extend_from_slice(&bg.means);
         w.log_scales.extend_from_slice(&bg.log_scales);
         w.rotations.extend_from_slice(&bg.rotations);
@@ -104,10 +92,6 @@ pub fn compose_into(
         }
         out.parts.push(Part { actor: None, start: 0, len: bg.len(), pose: None });
     }
-    if layers != Layers::ActorsOnly && out.reuse_background {
-        out.kept = Some((bg.len(), active_degree));
-    }
-    let w = &mut out.world;
     if layers == Layers::BackgroundOnly {
         return;
     }

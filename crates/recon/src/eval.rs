@@ -113,14 +113,13 @@ fn score<B: Backend>(
         let rendered: Vec<bool> = actors.alpha.iter().map(|a| *a > 0.5).collect();
         let truth: Vec<bool> = gt.track.iter().map(|k| k.is_some()).collect();
         s.actor_iou = iou(&rendered, &truth);
-        let mut drawer = crate::view::Drawer::new(backend, model);
         for (ai, actor) in model.actors.iter().enumerate() {
             let Some(k) = gt.track_ids.iter().position(|id| *id == actor.track_id) else { continue };
             let truth: Vec<bool> = gt.track.iter().map(|t| *t == Some(k)).collect();
             if truth.iter().filter(|x| **x).count() < 50 {
                 continue;
             }
-            let alone = drawer.draw(scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
+            let alone = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
             let mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
             if let Some(x) = iou(&mask, &truth) {
                 s.per_actor_iou.push((actor.track_id.clone(), x));

@@ -20,7 +20,7 @@ use crate::metrics::iou;
 use crate::model::SceneModel;
 use crate::pose::{box_pose_at, BoxPose};
 use crate::priors::objects::{fill_hull, hull};
-use crate::view::Drawer;
+use crate::view::draw;
 use scene::frames::{box_corners, vehicle_profile_corners};
 use scene::glam::{DVec2, DVec3};
 use scene::{LoggedMotion, ObjectClass, Scene, TrackState};
@@ -102,7 +102,6 @@ pub struct VehicleIou {
 /// Both IoUs for every moving vehicle of the model seen in view `v` (see the module comment).
 pub fn moving_vehicle_iou<B: Backend>(backend: &B, model: &SceneModel, scene: &Scene, v: &View) -> Vec<VehicleIou> {
     let mut out = Vec::new();
-    let mut drawer = Drawer::new(backend, model);
     for (ai, actor) in model.actors.iter().enumerate() {
         let Some(track) = scene.track(&actor.track_id) else { continue };
         if track.class != ObjectClass::Vehicle {
@@ -122,7 +121,7 @@ pub fn moving_vehicle_iou<B: Backend>(backend: &B, model: &SceneModel, scene: &S
         if truth.iter().filter(|x| **x).count() < MIN_PIXELS {
             continue;
         }
-        let alone = drawer.draw(scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
+        let alone = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
         let mut mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
         visible(&mut mask);
         if let (Some(b), Some(p)) = (iou(&mask, &truth), iou(&mask, &profile)) {

@@ -1,6 +1,6 @@
 //! Drawing a trained model at a time and a camera: compose (optionally with some actors moved or
 //! only some layers), rasterize, add the sky. Used by evaluation, `carla-gs render` and the
-//! re-render stage ([`Drawer`] for many frames of one model).
+//! re-render stage.
 
 use crate::backend::Backend;
 use crate::camera::pixel_ray;
@@ -34,60 +34,23 @@ pub fn draw<B: Backend>(
     layers: Layers,
     poses: &dyn Fn(usize) -> Option<Option<BoxPose>>,
 ) -> Drawn {
-    Drawer::new(backend, model).draw(scene, cam, t, layers, poses)
-}
-
-/// Draws one model many times (the frames of a video), keeping what one view leaves behind: the
-/// composed background rows (the model does not change while the drawer borrows it) and the
-/// backend's buffers (on the device: no allocation per frame).
-pub struct Drawer<'a, B: Backend> {
-    backend: &'a B,
-    model: &'a SceneModel,
-    composed: Composed,
-    ctx: B::Context,
-    img: Image,
-}
-
-impl<'a, B: Backend> Drawer<'a, B> {
-    pub fn new(backend: &'a B, model: &'a SceneModel) -> Self {
-        let mut composed = Composed::default();
-        composed.reuse_background = true;
-        Drawer { backend, model, composed, ctx: B::Context::default(), img: Image::default() }
-    }
-
-    /// As [`draw`].
-    pub fn draw(
-        &mut self,
-        scene: &Scene,
-        cam: &splat::Camera,
-        t: f64,
-        layers: Layers,
-        poses: &dyn Fn(usize) -> Option<Option<BoxPose>>,
-    ) -> Drawn {
-        let model = self.model;
-        let degree = model.background.sh_degree;
-        compose_into(model, scene, t, degree, layers, poses, &mut self.composed);
-        let img = &mut self.img;
-        self.backend.render(&self.composed.world, cam, &RenderOptions::default(), img, &mut self.ctx);
-        let (w, h) = (cam.width as usize, cam.height as usize);
-        let rgb = (0..w * h)
-            .map(|i| {
-                if layers == Layers::ActorsOnly {
-                    return img.rgb[i];
-                }
-                let s = model.sky.sample(&model.sky.taps(pixel_ray(cam, i % w, i / w)));
-                std::array::from_fn(|c| img.rgb[i][c] + s[c] * (1.0 - img.alpha[i]))
-            })
-            .collect();
-        Drawn {
-            width: w,
-            height: h,
-            rgb,
-            alpha: img.alpha.clone(),
-            depth: img.depth.clone(),
-            normal: img.normal.clone(),
-        }
-    }
+    let mut composed = Composed::default();
+    let degree = model.background.sh_degree;
+    compose_into(model, scene, t, degree, layers, poses, &mut composed);
+    let mut img = Image::default();
+    let mut ctx = B::Context::default();
+    backend.render(&composed.world, cam, &RenderOptions::default(), &mut img, &mut ctx);
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let rgb = (0..w * h)
+        .map(|i| {
+            if layers == Layers::ActorsOnly {
+                return img.rgb[i];
+            }
+            let s = model.sky.sample(&model.sky.taps(pixel_ray(cam, i % w, i / w)));
+            std::array::from_fn(|c| img.rgb[i][c] + s[c] * (1.0 - img.alpha[i]))
+        })
+        .collect();
+    Drawn { width: w, height: h, rgb, alpha: img.alpha, depth: img.depth, normal: img.normal }
 }
 
 /// 8-bit RGB bytes of a colour image (clamped).

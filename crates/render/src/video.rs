@@ -73,9 +73,6 @@ pub struct CaseView<'a, B: Backend> {
     pub executed: &'a Executed,
     pub adversary: Backprojection,
     actor: usize,
-    /// Every frame's views drawn by one drawer: the background is composed once, the device
-    /// buffers are kept.
-    drawer: std::sync::Mutex<recon::view::Drawer<'a, B>>,
 }
 
 impl<'a, B: Backend> CaseView<'a, B> {
@@ -87,8 +84,7 @@ impl<'a, B: Backend> CaseView<'a, B> {
     ) -> Result<Self, RenderError> {
         let adversary = Backprojection::new(scene, executed)?;
         let actor = actor_index(model, &adversary.track_id)?;
-        let drawer = std::sync::Mutex::new(recon::view::Drawer::new(backend, model));
-        Ok(CaseView { backend, model, scene, executed, adversary, actor, drawer })
+        Ok(CaseView { backend, model, scene, executed, adversary, actor })
     }
 
     /// Camera `camera` at time `t`, with the corner-case motion or as logged.
@@ -96,8 +92,7 @@ impl<'a, B: Backend> CaseView<'a, B> {
         let cam = camera_at(self.scene, camera, t, scale)?;
         let pose = corner_case.then(|| self.adversary.pose_at(self.scene, t));
         let overrides = |i: usize| if i == self.actor { pose } else { None };
-        let mut drawer = self.drawer.lock().unwrap_or_else(|p| p.into_inner());
-        let d = drawer.draw(self.scene, &cam, t, Layers::All, &overrides);
+        let d = recon::view::draw(self.backend, self.model, self.scene, &cam, t, Layers::All, &overrides);
         Ok(Canvas::from_rgb_f64(d.width, d.height, &d.rgb))
     }
 

@@ -130,37 +130,3 @@ fn actors_outside_their_lifespan_are_not_drawn_unless_posed() {
     assert_eq!(c.world.len(), 4);
     assert!((c.world.means[0][0] - 50.0 - m.actors[0].gaussians.means[0][0]).abs() < 1e-12);
 }
-
-#[test]
-fn a_kept_background_composes_what_a_fresh_composition_does() {
-    let (sc, m) = (scene(), model());
-    let mut kept = Composed::default();
-    kept.reuse_background = true;
-    let hidden = |_: usize| Some(None);
-    // Times, degrees and layers in an order that exercises every way in and out of the kept rows.
-    for (t, degree, layers) in [
-        (0.0, 2, Layers::All),
-        (0.5, 2, Layers::All),
-        (1.0, 1, Layers::All),
-        (0.2, 1, Layers::ActorsOnly),
-        (0.7, 1, Layers::BackgroundOnly),
-        (0.9, 1, Layers::All),
-        (5.0, 1, Layers::All),
-    ] {
-        let mut fresh = Composed::default();
-        compose_into(&m, &sc, t, degree, layers, &|_| None, &mut fresh);
-        compose_into(&m, &sc, t, degree, layers, &|_| None, &mut kept);
-        let key = |c: &Composed| {
-            let w = &c.world;
-            let parts: Vec<_> = c.parts.iter().map(|p| (p.actor, p.start, p.len)).collect();
-            format!(
-                "{:?} {:?} {:?} {:?} {:?} {:?} {:?}",
-                w.means, w.log_scales, w.rotations, w.opacity_logits, w.sh, w.sh_degree, parts
-            )
-        };
-        assert_eq!(key(&kept), key(&fresh), "t {t}, degree {degree}, {layers:?}");
-    }
-    // Hiding every actor leaves exactly the background.
-    compose_into(&m, &sc, 0.5, 1, Layers::All, &hidden, &mut kept);
-    assert_eq!(kept.world.len(), m.background.len());
-}
