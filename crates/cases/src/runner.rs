@@ -260,7 +260,8 @@ pub fn run_case(
         Ok(Outcome::Rejected { stats, reason }) => {
             return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
         }
-        Ok(x) => x,
+        Ok(Outcome::NoFeasible { reason }) => Err(reason),
+        Ok(Outcome::Plan { plan, stats }) => Ok((plan, stats)),
     };
     // The planner's choice checked by rollouts, also where nothing at t0 itself was feasible
     // (a later start time or the wider search may be).
@@ -274,11 +275,10 @@ pub fn run_case(
     };
     let (mut plan, mut validity, mut how) = match (first, checked) {
         (_, Some(Choice::Chosen(c))) => (c.plan, None, c.how),
-        (_, Some(Choice::Refused(reason))) | (Outcome::NoFeasible { reason }, _) => {
+        (_, Some(Choice::Refused(reason))) | (Err(reason), _) => {
             return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
         }
-        (Outcome::Plan { plan, stats }, _) => (plan, stats, "agent".to_string()),
-        (Outcome::Rejected { .. }, _) => unreachable!("returned above"),
+        (Ok((plan, stats)), _) => (plan, stats, "agent".to_string()),
     };
     let mut strategy = 1; // the planner's next refinement strategy
     let mut rounds: Vec<Round> = Vec::new();
