@@ -79,6 +79,16 @@ if ! "$ray_venv/bin/python" -c "import ray" >/dev/null 2>&1; then
   fi
 fi
 
+# llama.cpp's own `llama-server` for the real-server test of the `openai` agent
+# (tools/build-llama-server.sh, into $XDG_CACHE_HOME/carla-gs/llama-server; its test skips without
+# it). Opt-in: set CARLA_GS_BUILD_LLAMA_SERVER=1. It compiles llama.cpp once more (about 20 minutes
+# on 2 busy cores, BENCHMARKS.md), more than the CI budget allows by default.
+if [ "${CARLA_GS_BUILD_LLAMA_SERVER:-0}" = 1 ]; then
+  if ! tools/build-llama-server.sh >/dev/null; then
+    echo "setup: WARNING: could not build llama-server; the real-server test will skip" >&2
+  fi
+fi
+
 # The ASAM OpenDRIVE 1.6.1 schema (its files carry ASAM's terms) for the OpenDRIVE export test.
 xsd="$cache/schemas/opendrive-1.6.1"
 if [ ! -f "$xsd/opendrive_16_core.xsd" ]; then
