@@ -191,8 +191,11 @@ pub fn run_eval_in(
     progress: &ProgressBar,
 ) -> Result<Report, EvalError> {
     let ShardAttempts { mut attempts, positions, total, digest } = shard_attempts(universe, cfg)?;
+    // Scene names are unique (`check_unique`): one lookup table, not a scan per attempt.
+    let loaded: std::collections::HashMap<&str, usize> =
+        scenes.iter().enumerate().map(|(i, s)| (s.name.as_str(), i)).collect();
     for a in &mut attempts {
-        a.scene_index = scenes.iter().position(|s| s.name == a.scene).ok_or_else(|| {
+        a.scene_index = *loaded.get(a.scene.as_str()).ok_or_else(|| {
             EvalError::Input(format!("scene `{}` is in the attempt list but was not loaded", a.scene))
         })?;
     }
