@@ -2,12 +2,14 @@
 //! Gaussian model (`gaussians`), spherical harmonics (`sh`), the camera (`camera`) and PLY I/O
 //! in the standard 3DGS layout (`ply`), EWA projection (`project`), binning and the shared alpha
 //! (`tiles`), the tiled forward and backward rasterizers (`raster`, `raster_backward`) with their
-//! brute-force references (`render`, `backward`), and the per-Gaussian chain rule (`chain`).
+//! brute-force references (`render`, `backward`), and the per-Gaussian chain rule (`chain`);
+//! `fast` is the same renderer and gradients in f32 with SIMD tile kernels (the CPU training path).
 //! Imports nothing of ours.
 
 pub mod backward;
 pub mod camera;
 mod chain;
+pub mod fast;
 pub mod gaussians;
 pub mod ply;
 pub mod project;

@@ -1,0 +1,345 @@
+//! The f32 CPU rasterizer: the same renderer and gradients as the f64 reference (`raster`,
+//! `backward`), in single precision with SIMD tile kernels, for training and rendering on the
+//! CPU where speed matters. The reference stays the definition; `tests/fast_parity.rs` holds
+//! this path to it within documented tolerances (docs/cpu-f32.md).
+//!
+//! Pipeline per call, every buffer kept in a [`FastContext`] between calls (no allocation per
+//! iteration once sizes settle, except `k > 0` feature scratch in the backward pass):
+//! project (`project`, rayon over Gaussians) -> sort by depth (f32 depth bits, ties by index,
+//! one `u64` key) -> bin into 16x16 tiles (`tiles::bin_into`'s rule) -> forward per tile
+//! (`forward`, rayon over tiles, tile-major output) -> image rows in f64 (rayon over rows);
+//! backward per tile (`backward`, rayon) -> tiles merged in list order into f64 sums (one fixed
+//! order, so results are deterministic) -> chain rule per Gaussian (`chain`, rayon, each
+//! Gaussian owns its output slots).
+//!
+//! Semantics are the reference's: alpha cut-off 1/255, clamp 0.99, early stop at T < 1e-4,
+//! depth, normals (camera or world frame), feature channels, antialiased opacity, and
+//! `mean2d_norm` for densification. The `smooth` test mode has no f32 version: with
+//! `opts.smooth` these functions run the f64 reference (kept inside the context).
+
+mod backward;
+mod chain;
+mod forward;
+pub(crate) mod lanes;
+pub mod project;
+
+use crate::backward::{backward_into as backward_f64, Gradients, Upstream};
+use crate::camera::Camera;
+use crate::gaussians::Gaussians;
+use crate::raster::{render_into as render_f64, Context};
+use crate::render::{Features, Image, RenderOptions};
+use crate::tiles::{Tiles, TILE};
+use backward::{tile_backward, TileBack, G_CH};
+use chain::{gaussian_backward32, Out, Screen};
+use forward::{tile_forward, TileIn, BASE_CH, CH_T, NPX};
+use project::{project32, CamConst, Frame32, Hot32};
+use rayon::prelude::*;
+use std::sync::Mutex;
+
+pub use lanes::exp as exp_f32;
+
+/// Everything one render leaves for its backward pass, and the buffers both reuse.
+#[derive(Default)]
+pub struct FastContext {
+    /// Projected Gaussians front to back, and their chain-rule frames (same order).
+    pub hot: Vec<Hot32>,
+    frames: Vec<Frame32>,
+    tiles: Tiles,
+    /// Per tile, `(BASE_CH + k) * NPX` forward outputs (channel-major; final T in `CH_T`).
+    tile_out: Vec<f32>,
+    /// Per tile, `NPX` walk lengths.
+    tile_last: Vec<u32>,
+    channels: usize,
+    antialiased: bool,
+    nrot: Option<[[f32; 3]; 3]>,
+    background: [f32; 3],
+    // Projection scratch (one slot per Gaussian) and sort keys.
+    scratch: Vec<Option<(Hot32, Frame32)>>,
+    keys: Vec<u64>,
+    /// The f64 reference's context, used in `smooth` mode.
+    reference: Option<Box<Context>>,
+    back: Mutex<BackScratch>,
+}
+
+#[derive(Default)]
+struct BackScratch {
+    per_tile: Vec<(Vec<f32>, Vec<f32>, usize)>,
+    acc: Vec<f64>,
+    slot_of: Vec<u32>,
+}
+
+impl FastContext {
+    /// Calls `f(index, half_extent_px)` for every Gaussian the last render drew, front to back.
+    pub fn for_each_drawn(&self, f: &mut dyn FnMut(usize, f64)) {
+        match &self.reference {
+            Some(r) => r.proj.iter().for_each(|p| f(p.index, p.extent[0].max(p.extent[1]))),
+            None => self.hot.iter().for_each(|h| f(h.index as usize, h.extent[0].max(h.extent[1]) as f64)),
+        }
+    }
+
+    /// Per pixel (row-major), the final transmittance and walk length of the last render.
+    pub fn final_t_and_last(&self) -> (Vec<f32>, Vec<u32>) {
+        let (w, h) = (self.tiles.width, self.tiles.height);
+        let k = self.channels;
+        let (mut t, mut last) = (vec![1.0; w * h], vec![0; w * h]);
+        if self.reference.is_some() {
+            return (t, last);
+        }
+        for pix in 0..w * h {
+            let (ti, p) = tile_pixel(self.tiles.tx, w, pix);
+            t[pix] = self.tile_out[ti * (BASE_CH + k) * NPX + CH_T * NPX + p];
+            last[pix] = self.tile_last[ti * NPX + p];
+        }
+        (t, last)
+    }
+}
+
+/// Tile and tile-local index of image pixel `pix`.
+#[inline]
+fn tile_pixel(tx: usize, width: usize, pix: usize) -> (usize, usize) {
+    let (x, y) = (pix % width, pix / width);
+    ((y / TILE) * tx + x / TILE, (y % TILE) * TILE + x % TILE)
+}
+
+fn rot32(cam: &Camera) -> [[f32; 3]; 3] {
+    std::array::from_fn(|a| std::array::from_fn(|b| cam.camera_from_world[a][b] as f32))
+}
+
+/// Projects, sorts and bins into `ctx`.
+fn prepare(g: &Gaussians, cam: &Camera, opts: &RenderOptions, ctx: &mut FastContext) {
+    let cc = CamConst::of(cam);
+    ctx.scratch.resize(g.len(), None);
+    ctx.scratch.par_iter_mut().enumerate().for_each(|(i, s)| *s = project32(g, i, cam, &cc, opts.antialiased));
+    ctx.keys.clear();
+    // Depth > near > 0, so its f32 bits order like the depth; the low half breaks ties by index.
+    ctx.keys.extend(
+        ctx.scratch
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.map(|(h, _)| ((h.depth.to_bits() as u64) << 32) | i as u64)),
+    );
+    ctx.keys.par_sort_unstable();
+    let scratch = &ctx.scratch;
+    ctx.hot.clear();
+    ctx.hot.extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Hot32::default, |s| s.0)));
+    ctx.frames.clear();
+    ctx.frames
+        .extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Frame32::default, |s| s.1)));
+    bin32(&ctx.hot, cam.width as usize, cam.height as usize, &mut ctx.tiles);
+}
+
+/// `tiles::bin_into` for f32 extents: each Gaussian into every tile its extent box overlaps.
+fn bin32(hot: &[Hot32], width: usize, height: usize, tiles: &mut Tiles) {
+    let (tx, ty) = (width.div_ceil(TILE), height.div_ceil(TILE));
+    tiles.lists.resize_with(tx * ty, Vec::new);
+    tiles.lists.iter_mut().for_each(Vec::clear);
+    (tiles.tx, tiles.width, tiles.height) = (tx, width, height);
+    if tx == 0 || ty == 0 {
+        return;
+    }
+    let t = TILE as f32;
+    for (pi, h) in hot.iter().enumerate() {
+        let x0 = ((h.mean[0] - h.extent[0]) / t).floor().max(0.0);
+        let x1 = ((h.mean[0] + h.extent[0]) / t).floor().min(tx as f32 - 1.0);
+        let y0 = ((h.mean[1] - h.extent[1]) / t).floor().max(0.0);
+        let y1 = ((h.mean[1] + h.extent[1]) / t).floor().min(ty as f32 - 1.0);
+        if !(x1 >= x0 && y1 >= y0) {
+            continue;
+        }
+        for yy in y0 as usize..=y1 as usize {
+            for xx in x0 as usize..=x1 as usize {
+                tiles.lists[yy * tx + xx].push(pi as u32);
+            }
+        }
+    }
+}
+
+/// Renders `g` into `img` (f64 channels, as the reference's `render_into`), keeping in `ctx`
+/// what [`backward_into`] needs. Reuses the memory of both.
+pub fn render_into(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+    img: &mut Image,
+    ctx: &mut FastContext,
+) {
+    if opts.smooth {
+        let r = ctx.reference.get_or_insert_with(Default::default);
+        render_f64(g, cam, feats, opts, img, r);
+        return;
+    }
+    ctx.reference = None;
+    prepare(g, cam, opts, ctx);
+    let k = feats.channels;
+    (ctx.channels, ctx.antialiased) = (k, opts.antialiased);
+    ctx.background = opts.background.map(|v| v as f32);
+    let cam_rot = rot32(cam);
+    ctx.nrot = opts.normals_world.then_some(cam_rot);
+    // Camera-to-world for the forward's output normals: the transpose.
+    let out_rot = opts.normals_world.then(|| std::array::from_fn(|a| std::array::from_fn(|b| cam_rot[b][a])));
+    let n_tiles = ctx.tiles.lists.len();
+    let stride = (BASE_CH + k) * NPX;
+    ctx.tile_out.resize(n_tiles * stride, 0.0);
+    ctx.tile_last.resize(n_tiles * NPX, 0);
+    let (tiles, hot) = (&ctx.tiles, &ctx.hot);
+    ctx.tile_out.par_chunks_mut(stride).zip(ctx.tile_last.par_chunks_mut(NPX)).enumerate().for_each(
+        |(ti, (out, last))| {
+            let tin =
+                TileIn { rect: tiles.rect(ti), list: &tiles.lists[ti], hot, feats: feats.values, k, nrot: out_rot };
+            tile_forward(&tin, out, last);
+        },
+    );
+    img.reset(cam, k);
+    let (w, tx, bg) = (cam.width as usize, ctx.tiles.tx, opts.background);
+    let tile_out = &ctx.tile_out;
+    if w == 0 {
+        return;
+    }
+    (img.rgb.par_chunks_mut(w), img.alpha.par_chunks_mut(w), img.depth.par_chunks_mut(w), img.normal.par_chunks_mut(w))
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(y, (rgb, alpha, depth, normal))| {
+            for x in 0..w {
+                let (ti, p) = tile_pixel(tx, w, y * w + x);
+                let o = &tile_out[ti * stride..(ti + 1) * stride];
+                let t = o[CH_T * NPX + p] as f64;
+                rgb[x] = std::array::from_fn(|c| o[c * NPX + p] as f64 + t * bg[c]);
+                alpha[x] = 1.0 - t;
+                depth[x] = o[3 * NPX + p] as f64;
+                normal[x] = std::array::from_fn(|c| o[(4 + c) * NPX + p] as f64);
+            }
+        });
+    if k > 0 {
+        img.features.par_chunks_mut(w * k).enumerate().for_each(|(y, row)| {
+            for x in 0..w {
+                let (ti, p) = tile_pixel(tx, w, y * w + x);
+                for c in 0..k {
+                    row[x * k + c] = tile_out[ti * stride + (BASE_CH + c) * NPX + p] as f64;
+                }
+            }
+        });
+    }
+}
+
+/// Gradients of `sum(upstream * outputs)` for the render that produced `ctx` (same inputs), into
+/// `out` (overwritten, memory reused).
+pub fn backward_into(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+    ctx: &FastContext,
+    up: &Upstream,
+    out: &mut Gradients,
+) {
+    if let Some(r) = &ctx.reference {
+        backward_f64(g, cam, feats, opts, r, up, out);
+        return;
+    }
+    let k = ctx.channels;
+    let mut guard = ctx.back.lock().unwrap_or_else(|p| p.into_inner());
+    let bs = &mut *guard;
+    let n_tiles = ctx.tiles.lists.len();
+    let stride = (BASE_CH + k) * NPX;
+    bs.per_tile.resize_with(n_tiles, Default::default);
+    let width = cam.width as usize;
+    bs.per_tile.par_iter_mut().enumerate().for_each(|(ti, (sums, fscratch, walked))| {
+        let tb = TileBack {
+            rect: ctx.tiles.rect(ti),
+            list: &ctx.tiles.lists[ti],
+            hot: &ctx.hot,
+            feats: feats.values,
+            k,
+            fwd: &ctx.tile_out[ti * stride..(ti + 1) * stride],
+            last: &ctx.tile_last[ti * NPX..(ti + 1) * NPX],
+            up,
+            width,
+            nrot: ctx.nrot,
+            background: ctx.background,
+        };
+        *walked = tile_backward(&tb, sums, fscratch);
+    });
+    // Merge the tiles in list order (fixed), in f64.
+    let gs = G_CH + k;
+    let n = ctx.hot.len();
+    bs.acc.clear();
+    bs.acc.resize(n * gs, 0.0);
+    for (list, (sums, _, walked)) in ctx.tiles.lists.iter().zip(&bs.per_tile) {
+        for (slot, &pi) in list.iter().enumerate().take(*walked) {
+            let (dst, src) = (&mut bs.acc[pi as usize * gs..(pi as usize + 1) * gs], &sums[slot * gs..(slot + 1) * gs]);
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d += *s as f64;
+            }
+        }
+    }
+    out.reset(g, k);
+    bs.slot_of.clear();
+    bs.slot_of.resize(g.len(), u32::MAX);
+    for (s, h) in ctx.hot.iter().enumerate() {
+        bs.slot_of[h.index as usize] = s as u32;
+    }
+    let cc = CamConst::of(cam);
+    let kc = g.coeffs() * 3;
+    let (acc, slot_of) = (&bs.acc, &bs.slot_of);
+    (
+        out.means.par_iter_mut(),
+        out.log_scales.par_iter_mut(),
+        out.rotations.par_iter_mut(),
+        out.opacity_logits.par_iter_mut(),
+        out.sh.par_chunks_mut(kc.max(1)),
+        out.mean2d_norm.par_iter_mut(),
+    )
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(i, (mean, log_scale, rotation, opacity_logit, sh, mean2d_norm))| {
+            let s = slot_of[i];
+            if s == u32::MAX {
+                return;
+            }
+            let a = &acc[s as usize * gs..s as usize * gs + G_CH];
+            if a.iter().all(|v| *v == 0.0) {
+                return;
+            }
+            let o = Out { mean, log_scale, rotation, opacity_logit, sh, mean2d_norm };
+            gaussian_backward32(
+                g,
+                &cc,
+                ctx.antialiased,
+                &ctx.hot[s as usize],
+                &ctx.frames[s as usize],
+                &Screen::of(a),
+                o,
+            );
+        });
+    for (s, h) in ctx.hot.iter().enumerate() {
+        let i = h.index as usize;
+        out.features[i * k..(i + 1) * k].copy_from_slice(&bs.acc[s * gs + G_CH..(s + 1) * gs]);
+    }
+}
+
+/// Renders into a fresh image and context.
+pub fn render_with_context(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+) -> (Image, FastContext) {
+    let (mut img, mut ctx) = (Image::default(), FastContext::default());
+    render_into(g, cam, feats, opts, &mut img, &mut ctx);
+    (img, ctx)
+}
+
+/// Renders, then [`backward_into`], into fresh gradients.
+pub fn render_backward(
+    g: &Gaussians,
+    cam: &Camera,
+    feats: &Features,
+    opts: &RenderOptions,
+    up: &Upstream,
+) -> Gradients {
+    let (_, ctx) = render_with_context(g, cam, feats, opts);
+    let mut out = Gradients::default();
+    backward_into(g, cam, feats, opts, &ctx, up, &mut out);
+    out
+}
