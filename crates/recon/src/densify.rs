@@ -126,13 +126,14 @@ pub fn reset_logit_cap() -> f64 {
     (0.01f64 / 0.99).ln()
 }
 
-/// Caps every opacity at 0.01 and clears the opacity moments of every set.
+/// Caps every opacity of `sets` (the model's first `sets.len()` sets) at 0.01 and clears their
+/// opacity moments.
 pub fn reset_opacity(sets: &mut [&mut Gaussians], state: &mut AdamState) {
     let cap = reset_logit_cap();
     for g in sets.iter_mut() {
         g.opacity_logits.iter_mut().for_each(|o| *o = o.min(cap));
     }
-    for s in state.m.iter_mut().chain(state.v.iter_mut()) {
+    for s in state.m.iter_mut().take(sets.len()).chain(state.v.iter_mut().take(sets.len())) {
         s.opacity_logits.iter_mut().for_each(|o| *o = 0.0);
     }
 }

@@ -4,7 +4,8 @@
 //! and, on synthetic scenes, against the exact ground truth (under M, and over every surface
 //! pixel); actor-only mask IoU against the ground-truth instances (every actor together, and each
 //! actor alone where it covers at least 50 pixels); on real logs, each moving vehicle's silhouette
-//! against its logged box's projected hull (`eval_boxes`). Means are over the views that have the value;
+//! against its logged box's projected hull and profile and, where the view's frame has a sweep, the
+//! silhouette the LiDAR measured (`eval_boxes`, `eval_lidar`). Means are over the views that have the value;
 //! the number of views behind each mean is reported beside it.
 
 use crate::backend::Backend;
@@ -71,6 +72,10 @@ pub struct EvalReport {
     pub moving_vehicle_box_iou: Option<Mean>,
     #[serde(default)]
     pub moving_vehicle_profile_iou: Option<Mean>,
+    /// The mean over the (view, moving vehicle) pairs that have a LiDAR silhouette (`eval_lidar`);
+    /// the pairs without one are `moving_vehicle_box_iou.count` minus its count.
+    #[serde(default)]
+    pub moving_vehicle_lidar_iou: Option<Mean>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -126,7 +131,8 @@ fn score<B: Backend>(
             }
         }
     } else {
-        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v);
+        let sweep = crate::eval_lidar::Sweep::load(scene_dir, scene, v.frame)?;
+        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v, sweep.as_ref());
     }
     Ok(s)
 }
@@ -159,6 +165,9 @@ pub fn evaluate<B: Backend>(
         moving_vehicle_box_iou: mean(per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().map(|x| x.box_iou))),
         moving_vehicle_profile_iou: mean(
             per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().map(|x| x.profile_iou)),
+        ),
+        moving_vehicle_lidar_iou: mean(
+            per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.lidar_iou)),
         ),
         lpips: None,
         per_view,

@@ -12,10 +12,13 @@
 //! A vehicle counts as moving at a frame when the log labels it `Moving` there, or, without labels,
 //! when its speed is above [`MOVING_SPEED`]. Boxes with a corner behind the camera or fewer than
 //! [`MIN_PIXELS`] visible pixels in the image are skipped.
+//! Where the view's frame has a LiDAR sweep of its own, a third reference is the silhouette the
+//! sweep measured (`eval_lidar`): the hull of the points it took on the car.
 
 use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::data::View;
+use crate::eval_lidar::{points_on, silhouette, Sweep};
 use crate::metrics::iou;
 use crate::model::SceneModel;
 use crate::pose::{box_pose_at, BoxPose};
@@ -97,10 +100,24 @@ pub struct VehicleIou {
     pub track: String,
     pub box_iou: f64,
     pub profile_iou: f64,
+    /// Against the silhouette the view frame's sweep measured (`eval_lidar`); `None` where the
+    /// frame has no sweep or the sweep took fewer than `eval_lidar::MIN_POINTS` on the car.
+    #[serde(default)]
+    pub lidar_iou: Option<f64>,
+    /// How many of the sweep's points were on the car (0 without a sweep).
+    #[serde(default)]
+    pub lidar_points: usize,
 }
 
-/// Both IoUs for every moving vehicle of the model seen in view `v` (see the module comment).
-pub fn moving_vehicle_iou<B: Backend>(backend: &B, model: &SceneModel, scene: &Scene, v: &View) -> Vec<VehicleIou> {
+/// The IoUs of every moving vehicle of the model seen in view `v` (see the module comment);
+/// `sweep` is the view frame's own LiDAR sweep, if it has one.
+pub fn moving_vehicle_iou<B: Backend>(
+    backend: &B,
+    model: &SceneModel,
+    scene: &Scene,
+    v: &View,
+    sweep: Option<&Sweep>,
+) -> Vec<VehicleIou> {
     let mut out = Vec::new();
     for (ai, actor) in model.actors.iter().enumerate() {
         let Some(track) = scene.track(&actor.track_id) else { continue };
@@ -124,8 +141,19 @@ pub fn moving_vehicle_iou<B: Backend>(backend: &B, model: &SceneModel, scene: &S
         let alone = draw(backend, model, scene, &v.cam, v.time, Layers::ActorsOnly, &|i| (i != ai).then_some(None));
         let mut mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
         visible(&mut mask);
+        let on_car = sweep.and_then(|s| points_on(scene, track, state.size_lwh, s)).unwrap_or_default();
+        let lidar_iou = silhouette(scene, track, &on_car, v).and_then(|mut m| {
+            visible(&mut m);
+            (m.iter().filter(|x| **x).count() >= MIN_PIXELS).then(|| iou(&mask, &m)).flatten()
+        });
         if let (Some(b), Some(p)) = (iou(&mask, &truth), iou(&mask, &profile)) {
-            out.push(VehicleIou { track: actor.track_id.clone(), box_iou: b, profile_iou: p });
+            out.push(VehicleIou {
+                track: actor.track_id.clone(),
+                box_iou: b,
+                profile_iou: p,
+                lidar_iou,
+                lidar_points: on_car.len(),
+            });
         }
     }
     out

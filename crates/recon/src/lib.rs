@@ -22,6 +22,7 @@ pub mod device;
 pub mod error;
 pub mod eval;
 pub mod eval_boxes;
+pub mod eval_lidar;
 pub mod gt;
 pub mod image_check;
 pub mod init;

@@ -209,6 +209,9 @@ pub(crate) fn view_for(seed: u64, train_views: &[usize], it: usize) -> usize {
 pub(crate) struct DensityStep {
     pub rules: Option<Vec<Rule>>,
     pub reset: bool,
+    /// Whether the reset takes in the actors too (`DensifyConfig::reset_actors`), or only the
+    /// background.
+    pub reset_actors: bool,
 }
 
 /// The 3DGS schedule on 1-based iteration `n` for a model of `rows` Gaussians whose actors have
@@ -223,7 +226,7 @@ pub(crate) fn density_step(
     let d = &cfg.densify;
     let (from, until, reset) = cfg.densify_schedule();
     if n >= until {
-        return DensityStep { rules: None, reset: false };
+        return DensityStep { rules: None, reset: false, reset_actors: false };
     }
     let rules = (n > from && n.is_multiple_of(d.interval)).then(|| {
         let (grow, prune_big) = (rows < d.max_gaussians, reset > 0 && n > reset);
@@ -233,7 +236,7 @@ pub(crate) fn density_step(
             .map(|(i, b)| Rule::new(d, extent, grow, prune_big, b, derive_seed(cfg.seed, 2, (n * 1000 + i) as u64)))
             .collect()
     });
-    DensityStep { rules, reset: reset > 0 && n.is_multiple_of(reset) }
+    DensityStep { rules, reset: reset > 0 && n.is_multiple_of(reset), reset_actors: d.reset_actors }
 }
 
 /// The 3DGS schedule on 1-based iteration `n`.
@@ -256,8 +259,51 @@ pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent:
         total
     });
     if step.reset {
-        let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
+        let sets = if step.reset_actors { usize::MAX } else { 1 };
+        let mut sets: Vec<&mut Gaussians> = st.model.sets_mut().take(sets).collect();
         reset_opacity(&mut sets, &mut st.adam);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{empty, Actor, SceneModel};
+
+    fn state() -> TrainState {
+        let set = |o: f64| {
+            let mut g = empty(0);
+            g.means.push([0.0; 3]);
+            g.log_scales.push([-2.0; 3]);
+            g.rotations.push([1.0, 0.0, 0.0, 0.0]);
+            g.opacity_logits.push(o);
+            g.sh.push(0.0);
+            g.sh.extend([0.0; 2]);
+            g
+        };
+        let actor = Actor { track_id: "a".into(), size_lwh: [4.0, 2.0, 1.5], gaussians: set(2.0) };
+        let model = SceneModel { background: set(2.0), actors: vec![actor], sky: Sky::new(4, [0.5; 3]) };
+        let mut adam = crate::optim::AdamState::new(&model);
+        adam.m.iter_mut().for_each(|m| m.opacity_logits[0] = 1.0);
+        let mut stats = vec![Stats::default(); 2];
+        stats.iter_mut().for_each(|s| s.fit(1));
+        TrainState { next_iteration: 0, stats, model, adam }
+    }
+
+    #[test]
+    fn the_opacity_reset_leaves_the_actors_unless_asked() {
+        let mut cfg = TrainConfig { iterations: 1000, ..Default::default() };
+        let (_, _, every) = cfg.densify_schedule();
+        let cap = crate::densify::reset_logit_cap();
+        let mut st = state();
+        density_control(&mut st, &cfg, 10.0, every);
+        assert!((st.model.background.opacity_logits[0] - cap).abs() < 1e-12 && st.adam.m[0].opacity_logits[0] == 0.0);
+        assert_eq!(st.model.actors[0].gaussians.opacity_logits[0], 2.0, "the actor keeps its opacity");
+        assert_eq!(st.adam.m[1].opacity_logits[0], 1.0, "and its moments");
+        cfg.densify.reset_actors = true;
+        let mut st = state();
+        density_control(&mut st, &cfg, 10.0, every);
+        assert!((st.model.actors[0].gaussians.opacity_logits[0] - cap).abs() < 1e-12 && st.adam.m[1].opacity_logits[0] == 0.0);
+    }
 }

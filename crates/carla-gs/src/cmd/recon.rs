@@ -182,6 +182,7 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     show("per-actor mask IoU", &r.per_actor_iou);
     show("moving-vehicle IoU, box hull", &r.moving_vehicle_box_iou);
     show("moving-vehicle IoU, profile", &r.moving_vehicle_profile_iou);
+    show("moving-vehicle IoU, LiDAR", &r.moving_vehicle_lidar_iou);
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
 }

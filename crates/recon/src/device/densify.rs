@@ -25,12 +25,15 @@ pub(crate) fn control(
         None => None,
     };
     if step.reset {
-        let n = dm.rows();
-        let cap = crate::densify::reset_logit_cap() as f32;
-        // SAFETY: logits holds n values.
-        unsafe { s.launch_builder(&k.opacity_cap).arg(&n).arg(&cap).arg(&mut dm.p.logits).launch(linear(n))? };
-        s.memset_zeros(&mut dm.m.logits)?;
-        s.memset_zeros(&mut dm.v.logits)?;
+        // The background is set 0, rows 0..offsets[1]; the actors follow (`TrainConfig::reset_actors`).
+        let n = if step.reset_actors { dm.rows() } else { dm.offsets.get(1).copied().unwrap_or(0) };
+        if n > 0 {
+            let cap = crate::densify::reset_logit_cap() as f32;
+            // SAFETY: logits holds at least n values.
+            unsafe { s.launch_builder(&k.opacity_cap).arg(&n).arg(&cap).arg(&mut dm.p.logits).launch(linear(n))? };
+            s.memset_zeros(&mut dm.m.logits.slice_mut(0..n))?;
+            s.memset_zeros(&mut dm.v.logits.slice_mut(0..n))?;
+        }
     }
     Ok(counts)
 }
