@@ -16,7 +16,7 @@ use crate::run::{run, RenderSettings, RunInputs, RunSummary};
 use crate::PipelineError;
 use cases::spec::{AgentName, T0Spec};
 use indicatif::ProgressBar;
-use recon::backend::{Backend, Cpu};
+use recon::backend::{Backend, CpuF32};
 use recon::TrainConfig;
 use scene::Behavior;
 use serde::{Deserialize, Serialize};
@@ -129,7 +129,7 @@ impl Stages<'_> {
 
 /// Runs the demo into `out` (created if needed) and writes `report.html` there.
 pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Result<DemoResult, PipelineError> {
-    run_demo_on(&Cpu, cfg, out, progress)
+    run_demo_on(&CpuF32, cfg, out, progress)
 }
 
 /// [`run_demo`] with the rasterizer `backend` for training, evaluation and the videos. A backend

@@ -4,7 +4,7 @@
 use super::recon::{open_cuda, Device};
 use indicatif::{ProgressBar, ProgressStyle};
 use pipeline::demo::{run_demo_on, DemoConfig, DemoProgress};
-use recon::backend::Cpu;
+use recon::backend::{Cpu, CpuF32};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -76,7 +76,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     cfg.seed = a.seed;
     cfg.replace = a.replace.clone();
     let r = match a.device {
-        Device::Cpu => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
+        Device::Cpu => run_demo_on(&CpuF32, &cfg, &a.out, &Terminal)?,
+        Device::CpuF64 => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
         Device::Cuda => run_demo_on(&open_cuda()?, &cfg, &a.out, &Terminal)?,
     };
     println!("stage                          seconds");

@@ -3,7 +3,7 @@
 use super::progress::count_bar;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use recon::backend::{Backend, Cpu};
+use recon::backend::{Backend, Cpu, CpuF32};
 use recon::backend_cuda::Cuda;
 use recon::compose::Layers;
 use recon::data::PriorLoader;
@@ -13,8 +13,10 @@ use std::path::{Path, PathBuf};
 /// Where the rasterizer runs.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum Device {
-    /// The f64 CPU reference.
+    /// The CPU in f32 (SIMD tile kernels; held to the f64 reference by parity tests).
     Cpu,
+    /// The f64 CPU reference (slower; the definition the other paths are tested against).
+    CpuF64,
     /// The CUDA rasterizer on GPU 0 (needs the NVIDIA driver and NVRTC).
     Cuda,
 }
@@ -94,7 +96,8 @@ pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> 
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {
     match a.device {
-        Device::Cpu => train_on(a, Cpu),
+        Device::Cpu => train_on(a, CpuF32),
+        Device::CpuF64 => train_on(a, Cpu),
         Device::Cuda => {
             let c = open_cuda()?;
             train_on(a, c)
@@ -158,7 +161,8 @@ pub struct EvalArgs {
 pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let priors = priors_of(&a.scene)?;
     let r = match a.device {
-        Device::Cpu => recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?,
+        Device::Cpu => recon::eval::evaluate_model_dir(&CpuF32, &a.model, &a.scene, priors.as_ref())?,
+        Device::CpuF64 => recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?,
         Device::Cuda => recon::eval::evaluate_model_dir(&open_cuda()?, &a.model, &a.scene, priors.as_ref())?,
     };
     if a.json {
@@ -244,7 +248,8 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     let layers = if a.actors_only { Layers::ActorsOnly } else { Layers::All };
     let bar = count_bar("render");
     let d = match a.device {
-        Device::Cpu => recon::view::draw(&Cpu, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
+        Device::Cpu => recon::view::draw(&CpuF32, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
+        Device::CpuF64 => recon::view::draw(&Cpu, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
         Device::Cuda => recon::view::draw(&open_cuda()?, &model, &scene, &sc, frame.timestamp_s, layers, &|_| None),
     };
     bar.finish_and_clear();
@@ -284,7 +289,8 @@ pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
         pb
     };
     let rows = match a.device {
-        Device::Cpu => recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
+        Device::Cpu => recon::ablate::ablate(&CpuF32, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
+        Device::CpuF64 => recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
         Device::Cuda => recon::ablate::ablate(&open_cuda()?, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
     };
     let md = recon::ablate::markdown(&rows, cfg.iterations);

@@ -7,7 +7,7 @@ use anyhow::Context;
 use cases::spec::{AgentName, T0Spec};
 use pipeline::case::{CaseRequest, T0Choice};
 use pipeline::run::{RenderSettings, RunInputs};
-use recon::backend::Cpu;
+use recon::backend::{Cpu, CpuF32};
 use std::path::PathBuf;
 
 /// Video settings shared by `run`, `video` and `demo`.
@@ -130,6 +130,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let simulate = a.physics.simulate_fn()?;
     let s = match a.video.device {
         Device::Cpu => {
+            let inputs = RunInputs { scene: &scene, model: &model, backend: &CpuF32, render: &settings, out: &a.out };
+            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+        }
+        Device::CpuF64 => {
             let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
             pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
         }
@@ -232,6 +236,9 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
     let pb = count_bar("frames");
     let out = match a.video.device {
         Device::Cpu => {
+            render::video::CaseView::new(&CpuF32, &model, &scene, &executed)?.render_video(&spec, &a.out, &pb)?
+        }
+        Device::CpuF64 => {
             render::video::CaseView::new(&Cpu, &model, &scene, &executed)?.render_video(&spec, &a.out, &pb)?
         }
         Device::Cuda => {

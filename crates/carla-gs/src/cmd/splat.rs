@@ -1,5 +1,6 @@
-//! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png> [--device cpu|cuda]` and
-//! `carla-gs bench-splat [--cases NxWxH,... --iters K --devices cpu,cuda] --out <json>`.
+//! `carla-gs render-ply <model.ply> --camera <camera.json> --out <png> [--device cpu|cpu-f64|cuda]`
+//! and `carla-gs bench-splat [--cases NxWxH,... --iters K --devices cpu,cuda] --out <json>` (`cpu`
+//! times the f32 CPU path and the f64 reference side by side).
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
 //! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far); its image may
 //! have at most `render::budget::MAX_PIXELS` pixels.
@@ -53,7 +54,8 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     let opts = RenderOptions { background: [bg[0], bg[1], bg[2]], antialiased: a.antialiased, ..Default::default() };
     let t = Instant::now();
     let img = match a.device {
-        super::recon::Device::Cpu => rasterize(&g, &cam, &Features::default(), &opts),
+        super::recon::Device::Cpu => splat::fast::render_with_context(&g, &cam, &Features::default(), &opts).0,
+        super::recon::Device::CpuF64 => rasterize(&g, &cam, &Features::default(), &opts),
         super::recon::Device::Cuda => {
             let gpu = splat_cuda::Gpu::new().map_err(|e| anyhow::anyhow!("--device cuda: {e}"))?;
             let mut img = Image::default();
@@ -78,7 +80,7 @@ pub struct BenchArgs {
     cases: String,
     #[arg(long, default_value_t = 3)]
     iters: usize,
-    /// Comma-separated devices: cpu, cuda.
+    /// Comma-separated devices: cpu (the f32 path and the f64 reference, side by side), cuda.
     #[arg(long, default_value = "cpu")]
     devices: String,
     /// Timed iterations on the GPU (after 3 warm-up ones).
@@ -208,13 +210,36 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
         }
         let (f, b) = (median(&mut fwd), median(&mut both));
         println!(
-            "{n} Gaussians at {w}x{h}: forward {:.3} s ({:.2}/s), forward+backward {:.3} s ({:.2}/s)",
+            "{n} Gaussians at {w}x{h}, f64 reference: forward {:.3} s ({:.2}/s), forward+backward {:.3} s ({:.2}/s)",
             f,
             1.0 / f,
             b,
             1.0 / b
         );
-        row["cpu"] = serde_json::json!({"iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": rayon::current_num_threads()});
+        let threads = rayon::current_num_threads();
+        row["cpu"] = serde_json::json!({"iters": a.iters, "forward_s": f, "forward_backward_s": b, "threads": threads});
+        // The f32 path on the same case (one untimed warm-up: its buffers settle).
+        let mut fctx = splat::fast::FastContext::default();
+        splat::fast::render_into(&g, &cam, &Features::default(), &opts, &mut img, &mut fctx);
+        let (mut fwd32, mut both32) = (Vec::new(), Vec::new());
+        for _ in 0..a.iters {
+            let t = Instant::now();
+            splat::fast::render_into(&g, &cam, &Features::default(), &opts, &mut img, &mut fctx);
+            fwd32.push(t.elapsed().as_secs_f64());
+            let t2 = Instant::now();
+            splat::fast::backward_into(&g, &cam, &Features::default(), &opts, &fctx, &up, &mut grads);
+            both32.push(fwd32[fwd32.len() - 1] + t2.elapsed().as_secs_f64());
+        }
+        let (f32_, b32) = (median(&mut fwd32), median(&mut both32));
+        println!(
+            "{n} Gaussians at {w}x{h}, f32: forward {:.4} s ({:.1}x), forward+backward {:.4} s ({:.1}x)",
+            f32_,
+            f / f32_,
+            b32,
+            b / b32
+        );
+        row["cpu_f32"] = serde_json::json!({"iters": a.iters, "forward_s": f32_, "forward_backward_s": b32,
+            "threads": threads, "speedup_forward": f / f32_, "speedup_forward_backward": b / b32});
         results.push(row);
     }
     let json = serde_json::json!({"benchmark": "splat rasterizer, forward and forward+backward per iteration", "results": results});

@@ -1,5 +1,5 @@
-//! The f32 tiled backward rasterizer: one tile, its Gaussians back to front over the same half
-//! rows as the forward pass, eight pixels at once; then the merge of the tiles' sums.
+//! The f32 tiled backward rasterizer: one tile, its Gaussians back to front over the same 4x2
+//! chunks as the forward pass (`tile`), eight pixels at once; then the merge of the tiles' sums.
 //!
 //! Per pixel the arithmetic of `backward::step_back`: the transmittance before a Gaussian is
 //! recovered as `T_i = T_{i+1} / (1 - alpha_i)` from the stored final one, a pixel takes part for
@@ -9,11 +9,15 @@
 //! across lanes in a fixed order at the end of the Gaussian (deterministic). Lanes that do not
 //! take part are made neutral by selects (alpha 0, gradient 0), never by branches.
 
-use super::forward::{accepts, power_at, row_chunks, row_range, ALPHA_MAX, CH_T, NPX};
+use super::forward::CH_T;
 use super::lanes::{dispatch, exp, L};
 use super::project::Hot32;
+use super::tile::{
+    accepts, pair_quads, pair_range, power_at, prefetch, slot as tile_slot, Lanes, AHEAD, ALPHA_MAX, CHUNKS, LANE_DX,
+    LANE_DY, NPX, QUADS,
+};
 use crate::backward::Upstream;
-use crate::tiles::{Rect, TILE};
+use crate::tiles::Rect;
 
 /// Screen-space sums per Gaussian and tile, before the features: mean (2), conic (3), opacity,
 /// colour (3), depth, normal (3).
@@ -24,6 +28,8 @@ pub struct TileBack<'a> {
     pub rect: Rect,
     pub list: &'a [u32],
     pub hot: &'a [Hot32],
+    /// Model index of each entry of `hot` (for the features).
+    pub index: &'a [u32],
     pub feats: &'a [f64],
     pub k: usize,
     /// This tile's forward output (`forward::tile_forward`'s `out`) and `last`.
@@ -36,17 +42,21 @@ pub struct TileBack<'a> {
     pub background: [f32; 3],
 }
 
-/// Per-pixel state of a tile while it is walked back to front, channel-major (`NPX` each).
-const S_T: usize = 0;
-const S_UA: usize = 1; // d L / d alpha_out x T_final
-const S_URGB: usize = 2; // 3
-const S_UD: usize = 5;
-const S_UN: usize = 6; // 3
-const S_BRGB: usize = 9; // 3
-const S_BD: usize = 12;
-const S_BN: usize = 13; // 3
-const S_LAST: usize = 16;
-const S_N: usize = 17;
+type Plane = [Lanes; CHUNKS];
+
+/// Per-pixel state of a tile while it is walked back to front, in half-row chunks.
+struct State {
+    t: Plane,
+    last: Plane,
+    /// d L / d alpha_out x T_final.
+    ua: Plane,
+    urgb: [Plane; 3],
+    ud: Plane,
+    un: [Plane; 3],
+    brgb: [Plane; 3],
+    bd: Plane,
+    bn: [Plane; 3],
+}
 
 dispatch! {
     /// Walks one tile back to front; `out` gets `(G_CH + k)` sums per slot for the first
@@ -58,7 +68,18 @@ dispatch! {
 #[inline(always)]
 fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>) -> usize {
     let (r, k) = (tb.rect, tb.k);
-    let mut st = [0.0f32; S_N * NPX];
+    let z3 = || [[[0.0f32; L]; CHUNKS]; 3];
+    let mut st = State {
+        t: [[0.0; L]; CHUNKS],
+        last: [[0.0; L]; CHUNKS],
+        ua: [[0.0; L]; CHUNKS],
+        urgb: z3(),
+        ud: [[0.0; L]; CHUNKS],
+        un: z3(),
+        brgb: z3(),
+        bd: [[0.0; L]; CHUNKS],
+        bn: z3(),
+    };
     let up = tb.up;
     fstate.clear();
     fstate.resize(2 * k * NPX, 0.0);
@@ -66,14 +87,15 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
     let mut walked = 0u32;
     for y in 0..r.h {
         for x in 0..r.w {
-            let (p, pix) = (y * TILE + x, (r.y0 + y) * tb.width + r.x0 + x);
+            let (p, pix) = (tile_slot(x, y), (r.y0 + y) * tb.width + r.x0 + x);
+            let (ci, l) = (p / L, p % L);
             let t = tb.fwd[CH_T * NPX + p];
             let lst = tb.last[p];
             walked = walked.max(lst);
-            st[S_T * NPX + p] = t;
-            st[S_LAST * NPX + p] = lst as f32;
-            st[S_UA * NPX + p] = (up.alpha[pix] * t as f64) as f32;
-            st[S_UD * NPX + p] = up.depth[pix] as f32;
+            st.t[ci][l] = t;
+            st.last[ci][l] = lst as f32;
+            st.ua[ci][l] = (up.alpha[pix] * t as f64) as f32;
+            st.ud[ci][l] = up.depth[pix] as f32;
             let n = up.normal[pix];
             let nc: [f64; 3] = match &tb.nrot {
                 Some(m) => {
@@ -82,9 +104,9 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
                 None => n,
             };
             for c in 0..3 {
-                st[(S_URGB + c) * NPX + p] = up.rgb[pix][c] as f32;
-                st[(S_UN + c) * NPX + p] = nc[c] as f32;
-                st[(S_BRGB + c) * NPX + p] = tb.background[c] * t;
+                st.urgb[c][ci][l] = up.rgb[pix][c] as f32;
+                st.un[c][ci][l] = nc[c] as f32;
+                st.brgb[c][ci][l] = tb.background[c] * t;
             }
             for c in 0..k {
                 gf[c * NPX + p] = up.features[pix * k + c] as f32;
@@ -96,71 +118,68 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
     out.clear();
     out.resize(walked * stride, 0.0);
     let mut fa = vec![[0.0f32; L]; k];
-    let (mut w8, mut i8, mut ti8) = ([0.0f32; L], [0.0f32; L], [0.0f32; L]);
+    for i in 0..AHEAD.min(walked) {
+        prefetch(tb.hot, tb.list[walked - 1 - i] as usize);
+    }
     for slot in (0..walked).rev() {
-        let h = &tb.hot[tb.list[slot] as usize];
+        if slot >= AHEAD {
+            prefetch(tb.hot, tb.list[slot - AHEAD] as usize);
+        }
+        let pi = tb.list[slot] as usize;
+        let h = &tb.hot[pi];
+        let span = h.span();
         let vc = h.color.map(|c| c.max(0.0));
         let (n, z) = (h.normal, h.depth);
-        let fv = &tb.feats[h.index as usize * k..(h.index as usize + 1) * k];
+        let gi = if k > 0 { tb.index[pi] as usize } else { 0 };
+        let fv = &tb.feats[gi * k..(gi + 1) * k];
         let slot_f = slot as f32;
         let [ca, cb, cc] = h.conic;
-        let (o, pmin, ex) = (h.opacity, h.power_min, h.extent[0]);
+        let (o, pmin, ex, ey) = (h.opacity, h.power_min, h.extent[0], h.extent[1]);
+        let qx_base = r.x0 as f32 + 0.5 - h.mean[0];
+        let qy_base = r.y0 as f32 + 0.5 - h.mean[1];
         // Lane sums: mean (2), conic (3), opacity, colour (3), depth, normal (3).
         let mut acc = [[0.0f32; L]; G_CH];
         fa.iter_mut().for_each(|v| *v = [0.0; L]);
-        let (y_lo, y_hi) = row_range(h, &r);
-        for y in y_lo..y_hi {
-            let Some((dy, chunks)) = row_chunks(h, &r, y) else { continue };
-            let cdy = -0.5 * cc * dy * dy;
-            for (c, _) in chunks.iter().enumerate().filter(|(_, on)| **on) {
-                let base = y * TILE + c * L;
-                let qx0 = (r.x0 + c * L) as f32 + 0.5 - h.mean[0];
-                let mut da8 = [0.0f32; L];
-                let mut e8 = [0.0f32; L];
-                let mut a8 = [0.0f32; L];
+        let (j_lo, j_hi) = pair_range(h, &r);
+        for j in j_lo..j_hi {
+            let (q_lo, q_hi) = pair_quads(h, &span, &r, j);
+            let dy0 = qy_base + (2 * j) as f32;
+            for q in q_lo..q_hi {
+                let ci = j * QUADS + q;
+                let dx0 = qx_base + (4 * q) as f32;
+                let (tt, ls, ua, ud) = (st.t[ci], st.last[ci], st.ua[ci], st.ud[ci]);
+                let (ur, ug, ub) = (st.urgb[0][ci], st.urgb[1][ci], st.urgb[2][ci]);
+                let (un0, un1, un2) = (st.un[0][ci], st.un[1][ci], st.un[2][ci]);
+                let (br, bg, bb) = (st.brgb[0][ci], st.brgb[1][ci], st.brgb[2][ci]);
+                let (bn0, bn1, bn2) = (st.bn[0][ci], st.bn[1][ci], st.bn[2][ci]);
+                let bd = st.bd[ci];
+                let mut w8: Lanes = [0.0; L];
+                let mut i8: Lanes = [0.0; L];
+                let mut ti8: Lanes = [0.0; L];
+                let mut da8: Lanes = [0.0; L];
+                let mut e8: Lanes = [0.0; L];
+                let mut a8: Lanes = [0.0; L];
                 let mut m8 = [false; L];
                 for l in 0..L {
-                    let p = base + l;
-                    let col_ok = c * L + l < r.w;
-                    let dx = qx0 + l as f32;
-                    let power = power_at(ca, cb, dx, dy, cdy);
+                    let (dx, dy) = (dx0 + LANE_DX[l], dy0 + LANE_DY[l]);
+                    let power = power_at(ca, cb, cc, dx, dy);
                     let e = exp(power);
                     let raw = o * e;
                     let clamped = raw > ALPHA_MAX;
                     let alpha = if clamped { ALPHA_MAX } else { raw };
-                    let ok = col_ok & (slot_f < st[S_LAST * NPX + p]) & accepts(dx, ex, power, pmin, alpha);
+                    let ok = (slot_f < ls[l]) & accepts(dx, dy, ex, ey, power, pmin, alpha);
                     let a = if ok { alpha } else { 0.0 };
                     let inv = 1.0 / (1.0 - a);
-                    let ti = st[S_T * NPX + p] * inv;
+                    let ti = tt[l] * inv;
                     let w = a * ti;
-                    let (ur, ug, ub) = (st[S_URGB * NPX + p], st[(S_URGB + 1) * NPX + p], st[(S_URGB + 2) * NPX + p]);
-                    let (un0, un1, un2) = (st[S_UN * NPX + p], st[(S_UN + 1) * NPX + p], st[(S_UN + 2) * NPX + p]);
-                    let ud = st[S_UD * NPX + p];
-                    acc[6][l] += ur * w;
-                    acc[7][l] += ug * w;
-                    acc[8][l] += ub * w;
-                    acc[9][l] += ud * w;
-                    acc[10][l] += un0 * w;
-                    acc[11][l] += un1 * w;
-                    acc[12][l] += un2 * w;
-                    let b = |s: usize| st[s * NPX + p];
-                    let d_alpha = st[S_UA * NPX + p] * inv
-                        + ud * (ti * z - b(S_BD) * inv)
-                        + ur * (ti * vc[0] - b(S_BRGB) * inv)
-                        + ug * (ti * vc[1] - b(S_BRGB + 1) * inv)
-                        + ub * (ti * vc[2] - b(S_BRGB + 2) * inv)
-                        + un0 * (ti * n[0] - b(S_BN) * inv)
-                        + un1 * (ti * n[1] - b(S_BN + 1) * inv)
-                        + un2 * (ti * n[2] - b(S_BN + 2) * inv);
-                    st[S_BRGB * NPX + p] += w * vc[0];
-                    st[(S_BRGB + 1) * NPX + p] += w * vc[1];
-                    st[(S_BRGB + 2) * NPX + p] += w * vc[2];
-                    st[S_BN * NPX + p] += w * n[0];
-                    st[(S_BN + 1) * NPX + p] += w * n[1];
-                    st[(S_BN + 2) * NPX + p] += w * n[2];
-                    st[S_BD * NPX + p] += w * z;
-                    st[S_T * NPX + p] = ti;
-                    da8[l] = d_alpha;
+                    da8[l] = ua[l] * inv
+                        + ud[l] * (ti * z - bd[l] * inv)
+                        + ur[l] * (ti * vc[0] - br[l] * inv)
+                        + ug[l] * (ti * vc[1] - bg[l] * inv)
+                        + ub[l] * (ti * vc[2] - bb[l] * inv)
+                        + un0[l] * (ti * n[0] - bn0[l] * inv)
+                        + un1[l] * (ti * n[1] - bn1[l] * inv)
+                        + un2[l] * (ti * n[2] - bn2[l] * inv);
                     e8[l] = e;
                     a8[l] = a;
                     m8[l] = ok & !clamped;
@@ -168,10 +187,35 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
                     i8[l] = inv;
                     ti8[l] = ti;
                 }
+                let add = |acc: &mut Lanes, u: &Lanes| {
+                    for l in 0..L {
+                        acc[l] += u[l] * w8[l];
+                    }
+                };
+                add(&mut acc[6], &ur);
+                add(&mut acc[7], &ug);
+                add(&mut acc[8], &ub);
+                add(&mut acc[9], &ud);
+                add(&mut acc[10], &un0);
+                add(&mut acc[11], &un1);
+                add(&mut acc[12], &un2);
+                let grow = |b: &mut Lanes, v: f32| {
+                    for l in 0..L {
+                        b[l] += w8[l] * v;
+                    }
+                };
+                grow(&mut st.brgb[0][ci], vc[0]);
+                grow(&mut st.brgb[1][ci], vc[1]);
+                grow(&mut st.brgb[2][ci], vc[2]);
+                grow(&mut st.bn[0][ci], n[0]);
+                grow(&mut st.bn[1][ci], n[1]);
+                grow(&mut st.bn[2][ci], n[2]);
+                grow(&mut st.bd[ci], z);
+                st.t[ci] = ti8;
                 for (ch, &f) in fv.iter().enumerate() {
                     let f = f as f32;
-                    let (g, s) =
-                        (&gf[ch * NPX + base..ch * NPX + base + L], &mut sf[ch * NPX + base..ch * NPX + base + L]);
+                    let o = ch * NPX + ci * L;
+                    let (g, s) = (&gf[o..o + L], &mut sf[o..o + L]);
                     for l in 0..L {
                         fa[ch][l] += g[l] * w8[l];
                         da8[l] += g[l] * (ti8[l] * f - s[l] * i8[l]);
@@ -179,7 +223,7 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
                     }
                 }
                 for l in 0..L {
-                    let dx = qx0 + l as f32;
+                    let (dx, dy) = (dx0 + LANE_DX[l], dy0 + LANE_DY[l]);
                     let da = if m8[l] { da8[l] } else { 0.0 };
                     acc[5][l] += da * e8[l];
                     let dp = da * a8[l];

@@ -53,8 +53,10 @@ fn mat2_mul(a: [[f32; 2]; 2], b: [[f32; 2]; 2]) -> [[f32; 2]; 2] {
 }
 
 /// Backpropagates Gaussian `h`'s screen-space sums `a` to its parameters.
+#[allow(clippy::too_many_arguments)]
 pub fn gaussian_backward32(
     g: &Gaussians,
+    i: usize,
     cc: &CamConst,
     antialiased: bool,
     h: &Hot32,
@@ -62,7 +64,6 @@ pub fn gaussian_backward32(
     a: &Screen,
     out: Out,
 ) {
-    let i = h.index as usize;
     let wr = &cc.wr;
     let [x, y, z] = f.p;
     let mut g_p = [0.0f32; 3];

@@ -22,6 +22,7 @@ mod chain;
 mod forward;
 pub(crate) mod lanes;
 pub mod project;
+mod tile;
 
 use crate::backward::{backward_into as backward_f64, Gradients, Upstream};
 use crate::camera::Camera;
@@ -31,18 +32,21 @@ use crate::render::{Features, Image, RenderOptions};
 use crate::tiles::{Tiles, TILE};
 use backward::{tile_backward, TileBack, G_CH};
 use chain::{gaussian_backward32, Out, Screen};
-use forward::{tile_forward, TileIn, BASE_CH, CH_T, NPX};
+use forward::{tile_forward, TileIn, BASE_CH, CH_T};
 use project::{project32, CamConst, Frame32, Hot32};
 use rayon::prelude::*;
 use std::sync::Mutex;
+use tile::NPX;
 
 pub use lanes::exp as exp_f32;
 
 /// Everything one render leaves for its backward pass, and the buffers both reuse.
 #[derive(Default)]
 pub struct FastContext {
-    /// Projected Gaussians front to back, and their chain-rule frames (same order).
+    /// Projected Gaussians front to back, their model indices and their chain-rule frames (same
+    /// order).
     pub hot: Vec<Hot32>,
+    pub index: Vec<u32>,
     frames: Vec<Frame32>,
     tiles: Tiles,
     /// Per tile, `(BASE_CH + k) * NPX` forward outputs (channel-major; final T in `CH_T`).
@@ -73,7 +77,11 @@ impl FastContext {
     pub fn for_each_drawn(&self, f: &mut dyn FnMut(usize, f64)) {
         match &self.reference {
             Some(r) => r.proj.iter().for_each(|p| f(p.index, p.extent[0].max(p.extent[1]))),
-            None => self.hot.iter().for_each(|h| f(h.index as usize, h.extent[0].max(h.extent[1]) as f64)),
+            None => {
+                for (h, i) in self.hot.iter().zip(&self.index) {
+                    f(*i as usize, h.extent[0].max(h.extent[1]) as f64);
+                }
+            }
         }
     }
 
@@ -94,11 +102,11 @@ impl FastContext {
     }
 }
 
-/// Tile and tile-local index of image pixel `pix`.
+/// Tile and tile buffer index (`tile::slot`) of image pixel `pix`.
 #[inline]
 fn tile_pixel(tx: usize, width: usize, pix: usize) -> (usize, usize) {
     let (x, y) = (pix % width, pix / width);
-    ((y / TILE) * tx + x / TILE, (y % TILE) * TILE + x % TILE)
+    ((y / TILE) * tx + x / TILE, tile::slot(x % TILE, y % TILE))
 }
 
 fn rot32(cam: &Camera) -> [[f32; 3]; 3] {
@@ -122,6 +130,8 @@ fn prepare(g: &Gaussians, cam: &Camera, opts: &RenderOptions, ctx: &mut FastCont
     let scratch = &ctx.scratch;
     ctx.hot.clear();
     ctx.hot.extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Hot32::default, |s| s.0)));
+    ctx.index.clear();
+    ctx.index.extend(ctx.keys.iter().map(|k| (*k & 0xffff_ffff) as u32));
     ctx.frames.clear();
     ctx.frames
         .extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Frame32::default, |s| s.1)));
@@ -182,11 +192,18 @@ pub fn render_into(
     let stride = (BASE_CH + k) * NPX;
     ctx.tile_out.resize(n_tiles * stride, 0.0);
     ctx.tile_last.resize(n_tiles * NPX, 0);
-    let (tiles, hot) = (&ctx.tiles, &ctx.hot);
+    let (tiles, hot, index) = (&ctx.tiles, &ctx.hot, &ctx.index);
     ctx.tile_out.par_chunks_mut(stride).zip(ctx.tile_last.par_chunks_mut(NPX)).enumerate().for_each(
         |(ti, (out, last))| {
-            let tin =
-                TileIn { rect: tiles.rect(ti), list: &tiles.lists[ti], hot, feats: feats.values, k, nrot: out_rot };
+            let tin = TileIn {
+                rect: tiles.rect(ti),
+                list: &tiles.lists[ti],
+                hot,
+                index,
+                feats: feats.values,
+                k,
+                nrot: out_rot,
+            };
             tile_forward(&tin, out, last);
         },
     );
@@ -249,6 +266,7 @@ pub fn backward_into(
             rect: ctx.tiles.rect(ti),
             list: &ctx.tiles.lists[ti],
             hot: &ctx.hot,
+            index: &ctx.index,
             feats: feats.values,
             k,
             fwd: &ctx.tile_out[ti * stride..(ti + 1) * stride],
@@ -276,8 +294,8 @@ pub fn backward_into(
     out.reset(g, k);
     bs.slot_of.clear();
     bs.slot_of.resize(g.len(), u32::MAX);
-    for (s, h) in ctx.hot.iter().enumerate() {
-        bs.slot_of[h.index as usize] = s as u32;
+    for (s, i) in ctx.index.iter().enumerate() {
+        bs.slot_of[*i as usize] = s as u32;
     }
     let cc = CamConst::of(cam);
     let kc = g.coeffs() * 3;
@@ -302,18 +320,11 @@ pub fn backward_into(
                 return;
             }
             let o = Out { mean, log_scale, rotation, opacity_logit, sh, mean2d_norm };
-            gaussian_backward32(
-                g,
-                &cc,
-                ctx.antialiased,
-                &ctx.hot[s as usize],
-                &ctx.frames[s as usize],
-                &Screen::of(a),
-                o,
-            );
+            let (h, f) = (&ctx.hot[s as usize], &ctx.frames[s as usize]);
+            gaussian_backward32(g, i, &cc, ctx.antialiased, h, f, &Screen::of(a), o);
         });
-    for (s, h) in ctx.hot.iter().enumerate() {
-        let i = h.index as usize;
+    for (s, i) in ctx.index.iter().enumerate() {
+        let i = *i as usize;
         out.features[i * k..(i + 1) * k].copy_from_slice(&bs.acc[s * gs + G_CH..(s + 1) * gs]);
     }
 }

@@ -18,11 +18,10 @@ use crate::sh::basis;
 
 pub const ALPHA_MIN: f32 = 1.0 / 255.0;
 
-/// One projected Gaussian as the tile kernels read it.
+/// One projected Gaussian as the tile kernels read it: one cache line.
 #[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
 pub struct Hot32 {
-    /// The Gaussian's index in the model.
-    pub index: u32,
     pub mean: [f32; 2],
     /// Inverse 2D covariance `[a, b, c]` for `[[a, b], [b, c]]`.
     pub conic: [f32; 3],
@@ -31,13 +30,22 @@ pub struct Hot32 {
     pub extent: [f32; 2],
     /// `ln(1 / (255 o))`: below this exponent alpha < 1/255.
     pub power_min: f32,
-    /// Row spans as in `tiles::Hot::span`, padded more for f32 (relative 1e-4).
-    pub span: [f32; 3],
     /// SH colour before clamping at 0.
     pub color: [f32; 3],
     pub depth: f32,
     /// Unit normal in the camera frame.
     pub normal: [f32; 3],
+}
+
+impl Hot32 {
+    /// Row spans as in `tiles::Hot::span`, padded more for f32 (relative 1e-4): at row offset
+    /// `dy` the columns `dx = -s0 dy +- sqrt(s2 + s1 dy^2)`.
+    #[inline(always)]
+    pub fn span(&self) -> [f32; 3] {
+        let [a, b, c] = self.conic;
+        let level = -2.0 * self.power_min * (1.0 + 1e-4) + 1e-6;
+        [b / a, (b * b - a * c) / (a * a), level / a]
+    }
 }
 
 /// What the chain rule needs from the projection of one Gaussian (f32 `project::Frame`).
@@ -162,14 +170,11 @@ pub fn project32(g: &Gaussians, i: usize, cam: &Camera, cc: &CamConst, antialias
         n = n.map(|v| -v);
     }
     let power_min = (ALPHA_MIN / opacity).ln();
-    let [ka, kb, kc2] = conic;
-    let lvl = -2.0 * power_min * (1.0 + 1e-4) + 1e-6;
-    let span = [kb / ka, (kb * kb - ka * kc2) / (ka * ka), lvl / ka];
-    let ok = mean.iter().chain(&conic).chain(&color).chain(&n).chain(&extent).chain(&span).all(|v| v.is_finite());
+    let hot = Hot32 { mean, conic, opacity, extent, power_min, color, depth: p[2], normal: n };
+    let ok = mean.iter().chain(&conic).chain(&color).chain(&n).chain(&extent).chain(&hot.span()).all(|v| v.is_finite());
     if !ok {
         return None;
     }
-    let hot = Hot32 { index: i as u32, mean, conic, opacity, extent, power_min, span, color, depth: p[2], normal: n };
     let frame = Frame32 {
         p,
         r,
