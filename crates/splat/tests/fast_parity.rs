@@ -288,6 +288,31 @@ fn deterministic_and_buffers_reused() {
     assert_eq!(ctx.final_t_and_last(), fresh_ctx.final_t_and_last());
 }
 
+/// The same bits with one thread or two, and with the AVX2 or the baseline (SSE2) kernels: no
+/// result depends on scheduling or on the machine's vector width.
+#[test]
+fn independent_of_threads_and_vector_width() {
+    let cam = camera(70, 45);
+    let g = dense_scene(900, 31);
+    let fv: Vec<f64> = (0..g.len() * 2).map(|i| (i % 7) as f64 * 0.1).collect();
+    let f = Features { values: &fv, channels: 2 };
+    let up = Up::random(70 * 45, 2, 12);
+    let opts = RenderOptions { antialiased: true, ..Default::default() };
+    let run = || {
+        let (img, ctx) = fast::render_with_context(&g, &cam, &f, &opts);
+        let mut grads = Gradients::default();
+        fast::backward_into(&g, &cam, &f, &opts, &ctx, &up.get(), &mut grads);
+        (img, grads)
+    };
+    let two = run();
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(run);
+    assert_eq!(one, two, "one thread vs the pool");
+    fast::force_baseline(true);
+    let baseline = run();
+    fast::force_baseline(false);
+    assert_eq!(baseline, two, "baseline kernels vs AVX2");
+}
+
 /// The smooth test mode runs the f64 reference inside the fast context: identical results.
 #[test]
 fn smooth_mode_is_the_reference() {

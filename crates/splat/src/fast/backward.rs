@@ -28,8 +28,6 @@ pub struct TileBack<'a> {
     pub rect: Rect,
     pub list: &'a [u32],
     pub hot: &'a [Hot32],
-    /// Model index of each entry of `hot` (for the features).
-    pub index: &'a [u32],
     pub feats: &'a [f64],
     pub k: usize,
     /// This tile's forward output (`forward::tile_forward`'s `out`) and `last`.
@@ -130,8 +128,7 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
         let span = h.span();
         let vc = h.color.map(|c| c.max(0.0));
         let (n, z) = (h.normal, h.depth);
-        let gi = if k > 0 { tb.index[pi] as usize } else { 0 };
-        let fv = &tb.feats[gi * k..(gi + 1) * k];
+        let fv = &tb.feats[pi * k..(pi + 1) * k];
         let slot_f = slot as f32;
         let [ca, cb, cc] = h.conic;
         let (o, pmin, ex, ey) = (h.opacity, h.power_min, h.extent[0], h.extent[1]);

@@ -26,11 +26,9 @@ pub const CH_T: usize = 7;
 /// One tile's inputs.
 pub struct TileIn<'a> {
     pub rect: Rect,
-    /// Indices into `hot`, front to back.
+    /// Model indices (into `hot` and the features), front to back.
     pub list: &'a [u32],
     pub hot: &'a [Hot32],
-    /// Model index of each entry of `hot` (for the features).
-    pub index: &'a [u32],
     /// Feature values by Gaussian index, `k` per Gaussian.
     pub feats: &'a [f64],
     pub k: usize,
@@ -78,8 +76,7 @@ fn tile_forward_kernel(tin: &TileIn, out: &mut [f32], last_out: &mut [u32]) {
             None => h.normal,
         };
         let vals = [vc[0], vc[1], vc[2], h.depth, n[0], n[1], n[2]];
-        let gi = if k > 0 { tin.index[pi as usize] as usize } else { 0 };
-        let fv = &tin.feats[gi * k..(gi + 1) * k];
+        let fv = &tin.feats[pi as usize * k..(pi as usize + 1) * k];
         let slot1 = slot as u32 + 1;
         let [ca, cb, cc] = h.conic;
         let (o, pmin, ex, ey) = (h.opacity, h.power_min, h.extent[0], h.extent[1]);

@@ -13,7 +13,9 @@
 //! `ln(1/255) = -5.54`) is below 3e-7, about two f32 ulps; `exp_error_is_below_3e7` checks that
 //! against f64 `exp` on a dense grid.
 
-/// Lanes per chunk: half a 16-pixel tile row.
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Lanes per chunk (4 columns by 2 rows of a tile, see `tile`).
 pub const L: usize = 8;
 
 /// `e^x` for `x <= 0` (inputs below -87 give about `e^-87`; NaN gives NaN-free garbage, callers
@@ -37,14 +39,22 @@ pub fn exp(x: f32) -> f32 {
     er * f32::from_bits(((ni + 127) << 23) as u32)
 }
 
-/// Whether the AVX2 builds of the kernels may run here (checked once).
+static BASELINE_ONLY: AtomicBool = AtomicBool::new(false);
+
+/// Runs the kernels' baseline (SSE2) builds even where AVX2 is available (`true`), or lets them
+/// pick (`false`, the default). Both give bit-identical results; this is for tests and timings.
+pub fn force_baseline(on: bool) {
+    BASELINE_ONLY.store(on, Ordering::Relaxed);
+}
+
+/// Whether the AVX2 builds of the kernels may run here (detected once).
 #[inline]
 pub fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         use std::sync::OnceLock;
         static YES: OnceLock<bool> = OnceLock::new();
-        *YES.get_or_init(|| std::is_x86_feature_detected!("avx2"))
+        !BASELINE_ONLY.load(Ordering::Relaxed) && *YES.get_or_init(|| std::is_x86_feature_detected!("avx2"))
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

@@ -38,16 +38,21 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 use tile::NPX;
 
-pub use lanes::exp as exp_f32;
+pub use lanes::{exp as exp_f32, force_baseline};
 
 /// Everything one render leaves for its backward pass, and the buffers both reuse.
 #[derive(Default)]
 pub struct FastContext {
-    /// Projected Gaussians front to back, their model indices and their chain-rule frames (same
-    /// order).
-    pub hot: Vec<Hot32>,
-    pub index: Vec<u32>,
+    /// Per model index: the projected Gaussian, its chain-rule frame and whether it is drawn
+    /// (entries of culled Gaussians are stale). Indexed by model index so the projection writes
+    /// and the chain rule reads them in order; tile lists hold model indices.
+    hot: Vec<Hot32>,
     frames: Vec<Frame32>,
+    drawn: Vec<bool>,
+    /// Per model index, the tiles its extent box overlaps (`tile_box`).
+    boxes: Vec<[u16; 4]>,
+    /// The drawn Gaussians' model indices, front to back.
+    pub index: Vec<u32>,
     tiles: Tiles,
     /// Per tile, `(BASE_CH + k) * NPX` forward outputs (channel-major; final T in `CH_T`).
     tile_out: Vec<f32>,
@@ -57,8 +62,7 @@ pub struct FastContext {
     antialiased: bool,
     nrot: Option<[[f32; 3]; 3]>,
     background: [f32; 3],
-    // Projection scratch (one slot per Gaussian) and sort keys.
-    scratch: Vec<Option<(Hot32, Frame32)>>,
+    /// Sort keys: depth bits, then the index.
     keys: Vec<u64>,
     /// The f64 reference's context, used in `smooth` mode.
     reference: Option<Box<Context>>,
@@ -69,7 +73,6 @@ pub struct FastContext {
 struct BackScratch {
     per_tile: Vec<(Vec<f32>, Vec<f32>, usize)>,
     acc: Vec<f64>,
-    slot_of: Vec<u32>,
 }
 
 impl FastContext {
@@ -78,8 +81,9 @@ impl FastContext {
         match &self.reference {
             Some(r) => r.proj.iter().for_each(|p| f(p.index, p.extent[0].max(p.extent[1]))),
             None => {
-                for (h, i) in self.hot.iter().zip(&self.index) {
-                    f(*i as usize, h.extent[0].max(h.extent[1]) as f64);
+                for &i in &self.index {
+                    let h = &self.hot[i as usize];
+                    f(i as usize, h.extent[0].max(h.extent[1]) as f64);
                 }
             }
         }
@@ -116,49 +120,67 @@ fn rot32(cam: &Camera) -> [[f32; 3]; 3] {
 /// Projects, sorts and bins into `ctx`.
 fn prepare(g: &Gaussians, cam: &Camera, opts: &RenderOptions, ctx: &mut FastContext) {
     let cc = CamConst::of(cam);
-    ctx.scratch.resize(g.len(), None);
-    ctx.scratch.par_iter_mut().enumerate().for_each(|(i, s)| *s = project32(g, i, cam, &cc, opts.antialiased));
+    let n = g.len();
+    ctx.hot.resize(n, Hot32::default());
+    ctx.frames.resize(n, Frame32::default());
+    ctx.drawn.resize(n, false);
+    ctx.boxes.resize(n, [1, 0, 1, 0]);
+    let (tx, ty) = ((cam.width as usize).div_ceil(TILE), (cam.height as usize).div_ceil(TILE));
+    (ctx.hot.par_iter_mut(), ctx.frames.par_iter_mut(), ctx.drawn.par_iter_mut(), ctx.boxes.par_iter_mut())
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(i, (h, f, d, b))| {
+            *d = match project32(g, i, cam, &cc, opts.antialiased) {
+                Some((hh, ff)) => {
+                    (*h, *f, *b) = (hh, ff, tile_box(&hh, tx, ty));
+                    true
+                }
+                None => false,
+            }
+        });
     ctx.keys.clear();
     // Depth > near > 0, so its f32 bits order like the depth; the low half breaks ties by index.
+    let hot = &ctx.hot;
     ctx.keys.extend(
-        ctx.scratch
+        ctx.drawn
             .iter()
             .enumerate()
-            .filter_map(|(i, s)| s.map(|(h, _)| ((h.depth.to_bits() as u64) << 32) | i as u64)),
+            .filter(|(_, d)| **d)
+            .map(|(i, _)| ((hot[i].depth.to_bits() as u64) << 32) | i as u64),
     );
     ctx.keys.par_sort_unstable();
-    let scratch = &ctx.scratch;
-    ctx.hot.clear();
-    ctx.hot.extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Hot32::default, |s| s.0)));
     ctx.index.clear();
     ctx.index.extend(ctx.keys.iter().map(|k| (*k & 0xffff_ffff) as u32));
-    ctx.frames.clear();
-    ctx.frames
-        .extend(ctx.keys.iter().map(|k| scratch[(*k & 0xffff_ffff) as usize].map_or_else(Frame32::default, |s| s.1)));
-    bin32(&ctx.hot, cam.width as usize, cam.height as usize, &mut ctx.tiles);
+    bin32(&ctx.boxes, &ctx.index, cam.width as usize, cam.height as usize, &mut ctx.tiles);
 }
 
-/// `tiles::bin_into` for f32 extents: each Gaussian into every tile its extent box overlaps.
-fn bin32(hot: &[Hot32], width: usize, height: usize, tiles: &mut Tiles) {
+/// The tiles `[x0, x1, y0, y1]` (inclusive) the extent box of `h` overlaps, by
+/// `tiles::bin_into`'s rule; `x1 < x0` when none.
+fn tile_box(h: &Hot32, tx: usize, ty: usize) -> [u16; 4] {
+    let t = TILE as f32;
+    let x0 = ((h.mean[0] - h.extent[0]) / t).floor().max(0.0);
+    let x1 = ((h.mean[0] + h.extent[0]) / t).floor().min(tx as f32 - 1.0);
+    let y0 = ((h.mean[1] - h.extent[1]) / t).floor().max(0.0);
+    let y1 = ((h.mean[1] + h.extent[1]) / t).floor().min(ty as f32 - 1.0);
+    if x1 >= x0 && y1 >= y0 {
+        [x0 as u16, x1 as u16, y0 as u16, y1 as u16]
+    } else {
+        [1, 0, 1, 0]
+    }
+}
+
+/// Bins the drawn Gaussians (`order`: model indices front to back) into every tile their box
+/// (`boxes`, from [`tile_box`]) overlaps, so each tile's list is in depth order.
+fn bin32(boxes: &[[u16; 4]], order: &[u32], width: usize, height: usize, tiles: &mut Tiles) {
     let (tx, ty) = (width.div_ceil(TILE), height.div_ceil(TILE));
     tiles.lists.resize_with(tx * ty, Vec::new);
     tiles.lists.iter_mut().for_each(Vec::clear);
     (tiles.tx, tiles.width, tiles.height) = (tx, width, height);
-    if tx == 0 || ty == 0 {
-        return;
-    }
-    let t = TILE as f32;
-    for (pi, h) in hot.iter().enumerate() {
-        let x0 = ((h.mean[0] - h.extent[0]) / t).floor().max(0.0);
-        let x1 = ((h.mean[0] + h.extent[0]) / t).floor().min(tx as f32 - 1.0);
-        let y0 = ((h.mean[1] - h.extent[1]) / t).floor().max(0.0);
-        let y1 = ((h.mean[1] + h.extent[1]) / t).floor().min(ty as f32 - 1.0);
-        if !(x1 >= x0 && y1 >= y0) {
-            continue;
-        }
-        for yy in y0 as usize..=y1 as usize {
-            for xx in x0 as usize..=x1 as usize {
-                tiles.lists[yy * tx + xx].push(pi as u32);
+    for &pi in order {
+        let [x0, x1, y0, y1] = boxes[pi as usize].map(usize::from);
+        for yy in y0..=y1 {
+            for xx in x0..=x1 {
+                tiles.lists[yy * tx + xx].push(pi);
             }
         }
     }
@@ -192,18 +214,11 @@ pub fn render_into(
     let stride = (BASE_CH + k) * NPX;
     ctx.tile_out.resize(n_tiles * stride, 0.0);
     ctx.tile_last.resize(n_tiles * NPX, 0);
-    let (tiles, hot, index) = (&ctx.tiles, &ctx.hot, &ctx.index);
+    let (tiles, hot) = (&ctx.tiles, &ctx.hot);
     ctx.tile_out.par_chunks_mut(stride).zip(ctx.tile_last.par_chunks_mut(NPX)).enumerate().for_each(
         |(ti, (out, last))| {
-            let tin = TileIn {
-                rect: tiles.rect(ti),
-                list: &tiles.lists[ti],
-                hot,
-                index,
-                feats: feats.values,
-                k,
-                nrot: out_rot,
-            };
+            let tin =
+                TileIn { rect: tiles.rect(ti), list: &tiles.lists[ti], hot, feats: feats.values, k, nrot: out_rot };
             tile_forward(&tin, out, last);
         },
     );
@@ -266,7 +281,6 @@ pub fn backward_into(
             rect: ctx.tiles.rect(ti),
             list: &ctx.tiles.lists[ti],
             hot: &ctx.hot,
-            index: &ctx.index,
             feats: feats.values,
             k,
             fwd: &ctx.tile_out[ti * stride..(ti + 1) * stride],
@@ -278,9 +292,9 @@ pub fn backward_into(
         };
         *walked = tile_backward(&tb, sums, fscratch);
     });
-    // Merge the tiles in list order (fixed), in f64.
+    // Merge the tiles in list order (fixed), in f64, by model index.
     let gs = G_CH + k;
-    let n = ctx.hot.len();
+    let n = g.len();
     bs.acc.clear();
     bs.acc.resize(n * gs, 0.0);
     for (list, (sums, _, walked)) in ctx.tiles.lists.iter().zip(&bs.per_tile) {
@@ -292,14 +306,9 @@ pub fn backward_into(
         }
     }
     out.reset(g, k);
-    bs.slot_of.clear();
-    bs.slot_of.resize(g.len(), u32::MAX);
-    for (s, i) in ctx.index.iter().enumerate() {
-        bs.slot_of[*i as usize] = s as u32;
-    }
     let cc = CamConst::of(cam);
     let kc = g.coeffs() * 3;
-    let (acc, slot_of) = (&bs.acc, &bs.slot_of);
+    let acc = &bs.acc;
     (
         out.means.par_iter_mut(),
         out.log_scales.par_iter_mut(),
@@ -311,21 +320,19 @@ pub fn backward_into(
         .into_par_iter()
         .enumerate()
         .for_each(|(i, (mean, log_scale, rotation, opacity_logit, sh, mean2d_norm))| {
-            let s = slot_of[i];
-            if s == u32::MAX {
-                return;
-            }
-            let a = &acc[s as usize * gs..s as usize * gs + G_CH];
-            if a.iter().all(|v| *v == 0.0) {
+            // Gaussians not drawn have all-zero sums (and stale frames, never read).
+            let a = &acc[i * gs..i * gs + G_CH];
+            if !ctx.drawn[i] || a.iter().all(|v| *v == 0.0) {
                 return;
             }
             let o = Out { mean, log_scale, rotation, opacity_logit, sh, mean2d_norm };
-            let (h, f) = (&ctx.hot[s as usize], &ctx.frames[s as usize]);
-            gaussian_backward32(g, i, &cc, ctx.antialiased, h, f, &Screen::of(a), o);
+            gaussian_backward32(g, i, &cc, ctx.antialiased, &ctx.hot[i], &ctx.frames[i], &Screen::of(a), o);
         });
-    for (s, i) in ctx.index.iter().enumerate() {
-        let i = *i as usize;
-        out.features[i * k..(i + 1) * k].copy_from_slice(&bs.acc[s * gs + G_CH..(s + 1) * gs]);
+    if k > 0 {
+        for &i in &ctx.index {
+            let i = i as usize;
+            out.features[i * k..(i + 1) * k].copy_from_slice(&bs.acc[i * gs + G_CH..(i + 1) * gs]);
+        }
     }
 }
 
