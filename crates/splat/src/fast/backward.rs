@@ -13,8 +13,8 @@ use super::forward::CH_T;
 use super::lanes::{dispatch, exp, L};
 use super::project::Hot32;
 use super::tile::{
-    accepts, pair_quads, pair_range, power_at, prefetch, slot as tile_slot, Lanes, AHEAD, ALPHA_MAX, CHUNKS, LANE_DX,
-    LANE_DY, NPX, QUADS,
+    accepts, any_lane, pair_quads, pair_range, power_at, prefetch, slot as tile_slot, Lanes, AHEAD, ALPHA_MAX, CHUNKS,
+    LANE_DX, LANE_DY, NPX, QUADS,
 };
 use crate::backward::Upstream;
 use crate::tiles::Rect;
@@ -144,7 +144,11 @@ fn tile_backward_kernel(tb: &TileBack, out: &mut Vec<f32>, fstate: &mut Vec<f32>
             for q in q_lo..q_hi {
                 let ci = j * QUADS + q;
                 let dx0 = qx_base + (4 * q) as f32;
-                let (tt, ls, ua, ud) = (st.t[ci], st.last[ci], st.ua[ci], st.ud[ci]);
+                let ls = st.last[ci];
+                if !any_lane(h, dx0, dy0, &ls.map(|v| slot_f < v)) {
+                    continue;
+                }
+                let (tt, ua, ud) = (st.t[ci], st.ua[ci], st.ud[ci]);
                 let (ur, ug, ub) = (st.urgb[0][ci], st.urgb[1][ci], st.urgb[2][ci]);
                 let (un0, un1, un2) = (st.un[0][ci], st.un[1][ci], st.un[2][ci]);
                 let (br, bg, bb) = (st.brgb[0][ci], st.brgb[1][ci], st.brgb[2][ci]);

@@ -13,8 +13,8 @@
 use super::lanes::{dispatch, exp, L};
 use super::project::Hot32;
 use super::tile::{
-    accepts, pair_quads, pair_range, power_at, prefetch, Lanes, AHEAD, ALPHA_MAX, CHUNKS, LANE_DX, LANE_DY, NPX, QUADS,
-    T_MIN,
+    accepts, any_lane, pair_quads, pair_range, power_at, prefetch, Lanes, AHEAD, ALPHA_MAX, CHUNKS, LANE_DX, LANE_DY,
+    NPX, QUADS, T_MIN,
 };
 use crate::tiles::Rect;
 
@@ -90,6 +90,9 @@ fn tile_forward_kernel(tin: &TileIn, out: &mut [f32], last_out: &mut [u32]) {
                 let ci = j * QUADS + q;
                 let dx0 = qx_base + (4 * q) as f32;
                 let (tt, ls) = (t[ci], last[ci]);
+                if !any_lane(h, dx0, dy0, &tt.map(|v| v > 0.0)) {
+                    continue;
+                }
                 let mut w: Lanes = [0.0; L];
                 let mut nt: Lanes = [0.0; L];
                 let mut nl = [0u32; L];

@@ -48,6 +48,22 @@ pub fn accepts(dx: f32, dy: f32, ex: f32, ey: f32, power: f32, pmin: f32, alpha:
     !(dx.abs() > ex) & !(dy.abs() > ey) & !(power > 0.0) & !(power < pmin) & !(alpha < ALPHA_MIN)
 }
 
+/// Whether any lane of a chunk may accept the Gaussian: [`accepts`] without the alpha test (a
+/// superset), and `live` (the lane still takes part). Lets a kernel skip chunks of the ellipse's
+/// box that no pixel of it reaches before computing `exp`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn any_lane(h: &Hot32, dx0: f32, dy0: f32, live: &[bool; L]) -> bool {
+    let [ca, cb, cc] = h.conic;
+    let mut any = false;
+    for l in 0..L {
+        let (dx, dy) = (dx0 + LANE_DX[l], dy0 + LANE_DY[l]);
+        let power = power_at(ca, cb, cc, dx, dy);
+        any |= live[l] & accepts(dx, dy, h.extent[0], h.extent[1], power, h.power_min, ALPHA_MIN);
+    }
+    any
+}
+
 /// The tile-local column interval `[lo, hi]` Gaussian `h` may reach in tile row `y`, or `None`.
 #[inline(always)]
 fn row_cols(h: &Hot32, span: &[f32; 3], r: &Rect, y: usize) -> Option<(f32, f32)> {
