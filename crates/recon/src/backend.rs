@@ -121,29 +121,29 @@ mod tests {
         let n = 96 * 64;
         let (rgb, alpha, depth, normal) = (vec![[0.5, -0.25, 1.0]; n], vec![0.3; n], vec![0.01; n], vec![[0.1; 3]; n]);
         let up = Upstream { rgb: &rgb, alpha: &alpha, depth: &depth, normal: &normal, features: &[] };
-        let run = |b: &dyn Fn(&mut Image, &mut Gradients, &mut Vec<(usize, f64)>)| {
-            let (mut img, mut gr, mut drawn) = (Image::default(), Gradients::default(), Vec::new());
-            b(&mut img, &mut gr, &mut drawn);
+        fn run<B: Backend>(
+            b: B,
+            g: &Gaussians,
+            cam: &Camera,
+            opts: &RenderOptions,
+            up: &Upstream,
+        ) -> (Image, Gradients, Vec<(usize, f64)>) {
+            let (mut img, mut gr, mut drawn, mut ctx) =
+                (Image::default(), Gradients::default(), Vec::new(), B::Context::default());
+            b.render(g, cam, opts, &mut img, &mut ctx);
+            b.backward(g, cam, opts, &ctx, up, &mut gr);
+            b.for_each_drawn(&ctx, &mut |i, r| drawn.push((i, r)));
             (img, gr, drawn)
-        };
-        let (i64_, g64, d64) = run(&|img, gr, drawn| {
-            let mut ctx = Context::default();
-            Cpu.render(&g, &cam, &opts, img, &mut ctx);
-            Cpu.backward(&g, &cam, &opts, &ctx, &up, gr);
-            Cpu.for_each_drawn(&ctx, &mut |i, r| drawn.push((i, r)));
-        });
-        let (i32_, g32, d32) = run(&|img, gr, drawn| {
-            let mut ctx = FastContext::default();
-            CpuF32.render(&g, &cam, &opts, img, &mut ctx);
-            CpuF32.backward(&g, &cam, &opts, &ctx, &up, gr);
-            CpuF32.for_each_drawn(&ctx, &mut |i, r| drawn.push((i, r)));
-        });
+        }
+        let (i64_, g64, d64) = run(Cpu, &g, &cam, &opts, &up);
+        let (i32_, g32, d32) = run(CpuF32, &g, &cam, &opts, &up);
         assert_eq!(d32.len(), d64.len());
         for ((i, r), (j, s)) in d32.iter().zip(&d64) {
             assert_eq!(i, j, "same Gaussians in the same order");
             assert!((r - s).abs() <= 1e-5 * s.max(1.0), "extent {r} vs {s}");
         }
-        let worst = i32_.rgb.iter().flatten().zip(i64_.rgb.iter().flatten()).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let worst =
+            i32_.rgb.iter().flatten().zip(i64_.rgb.iter().flatten()).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
         assert!(worst < 1e-4, "rgb differs by {worst}");
         let norm = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
         let diff: Vec<[f64; 3]> =

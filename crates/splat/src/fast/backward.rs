@@ -9,6 +9,9 @@
 //! across lanes in a fixed order at the end of the Gaussian (deterministic). Lanes that do not
 //! take part are made neutral by selects (alpha 0, gradient 0), never by branches.
 
+// Index loops over the three colour / normal channels mirror the formulas.
+#![allow(clippy::needless_range_loop)]
+
 use super::forward::CH_T;
 use super::lanes::{dispatch, exp, L};
 use super::project::Hot32;
