@@ -36,6 +36,16 @@ pub struct CaseRequest {
     /// LLM's sampling depend on it.
     pub seeds_per_t0: usize,
     pub refine_rounds: usize,
+    /// The window measured and rendered: by default the plan's own end ([`rendered_window`]);
+    /// `eval-cases`'s window (`--horizon 5 --after-plan stop`) makes `run` show exactly the case
+    /// the tables count.
+    #[serde(default = "rendered_window")]
+    pub window: cases::window::Window,
+}
+
+/// One case rendered as planned: its own plan end, no continuation after it.
+pub fn rendered_window() -> cases::window::Window {
+    cases::window::Window { horizon: cases::window::Horizon::Plan, after_plan: cases::window::AfterPlan::Stop }
 }
 
 /// One analysis time tried.
@@ -157,8 +167,7 @@ pub fn select_case_with(
         rollout: sim::RolloutConfig::default(),
         refine_rounds: req.refine_rounds,
         simulate,
-        // One case is rendered as planned: its own plan end, no continuation after it.
-        window: cases::window::Window { horizon: cases::window::Horizon::Plan, ..Default::default() },
+        window: req.window,
         requests: Default::default(),
         check_rollouts: true,
     };

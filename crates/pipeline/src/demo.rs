@@ -269,6 +269,7 @@ pub fn run_demo_on<B: Backend + Clone>(
             seed: cfg.seed,
             seeds_per_t0: 3,
             refine_rounds: 3,
+            window: crate::case::rendered_window(),
         };
         let mut key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": render_settings});
         if !cfg.replace.is_empty() {

@@ -73,6 +73,7 @@ fn the_adversary_is_drawn_at_its_executed_pose() {
         seed: 0,
         seeds_per_t0: 1,
         refine_rounds: 0,
+        window: pipeline::case::rendered_window(),
     };
     let sel = select_case(&scene, &req, &T0Choice::Search(T0Spec::Every(0.5)), None);
     let (result, executed) = sel.chosen.expect("a sudden-braking case on the synthetic street");
@@ -131,6 +132,7 @@ fn run_writes_a_replayable_case() {
         seed: 0,
         seeds_per_t0: 1,
         refine_rounds: 0,
+        window: pipeline::case::rendered_window(),
     };
     let s = pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &indicatif::ProgressBar::hidden()).unwrap();
     let plan = &s.result.as_ref().expect("a case").best().unwrap().plan;

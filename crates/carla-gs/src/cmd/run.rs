@@ -80,6 +80,13 @@ pub struct RunArgs {
     /// Seeds tried at each t0 (seed, seed+1, ...) before moving on.
     #[arg(long, default_value_t = 3)]
     seeds_per_t0: usize,
+    /// The window measured and rendered: `plan` (the plan's own end) or seconds from t0 (clipped
+    /// at the log's end), as `eval-cases --horizon`; `--horizon 5` shows the case the tables count.
+    #[arg(long, default_value = "plan")]
+    horizon: String,
+    /// Between the plan's end and the horizon: `stop` (brake to rest at 4 m/s^2) or `hold`.
+    #[arg(long, default_value = "stop")]
+    after_plan: String,
     #[command(flatten)]
     video: VideoArgs,
     #[command(flatten)]
@@ -118,6 +125,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         seed: a.seed,
         seeds_per_t0: a.seeds_per_t0,
         refine_rounds: a.refine_rounds,
+        window: cases::window::Window {
+            horizon: a.horizon.parse().map_err(|e: String| anyhow::anyhow!("--horizon: {e}"))?,
+            after_plan: a.after_plan.parse().map_err(|e: String| anyhow::anyhow!("--after-plan: {e}"))?,
+        },
     };
     let mut llm = match agent {
         AgentName::Local => Some(a.llm.local()?),
