@@ -1,6 +1,7 @@
 //! Initial Gaussians. The background comes from LiDAR when the scene has it, else from the depth
 //! priors back-projected through their views, else from random points in the cameras' bounds;
-//! each tracked object gets the LiDAR points inside its box (in its box frame), topped up with
+//! each tracked object gets the LiDAR points inside its box (in its box frame) above the road band
+//! at its floor ([`ACTOR_FLOOR_M`]), topped up with
 //! random points inside the box. Points are voxel-thinned and capped (seeded), coloured from the
 //! first view that sees them, and get the 3DGS start: scale = RMS distance to the three nearest
 //! neighbours, low opacity, SH DC from the colour; where the neighbours are planar the Gaussian
@@ -25,6 +26,11 @@ use splat::sh::C0;
 use splat::Gaussians;
 use std::collections::HashMap;
 use std::path::Path;
+
+/// LiDAR points this close (m) to a box's floor are the road under the object, not the object:
+/// they start the background. In an actor they would be road that drives along with the car
+/// (a dark smear under every car once the actors keep their opacity through the resets).
+pub const ACTOR_FLOOR_M: f64 = 0.15;
 
 /// Where the start came from, for the model record and the log.
 #[derive(Clone, Debug, Serialize)]
@@ -152,7 +158,11 @@ pub fn initialise(
                 if let Some((box_from_world, s)) = pose {
                     let b = box_from_world.transform_point(p_world);
                     if b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2] {
-                        actor_points[ti].push((b, colour));
+                        if b.z >= -0.5 * s[2] + ACTOR_FLOOR_M {
+                            actor_points[ti].push((b, colour));
+                        } else {
+                            bg_points.push((p_world, colour));
+                        }
                         return;
                     }
                 }
