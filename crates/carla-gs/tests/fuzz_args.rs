@@ -51,6 +51,10 @@ fn numeric_flags_exit_0_2_or_3() {
     let simulate = vec!["simulate", s(&plan), "--scene", s(&scene), "--out", &o_ex];
     let reason_at = vec!["reason", s(&scene), "--behavior", "sudden_cut_in", "--agent", "planner", "--out", &o_plan];
     let synth2 = vec!["synth", "--out", &o_s, "--force", "--frames", "3", "--width", "16", "--height", "16"];
+    let o_run = out("run");
+    let run_at =
+        vec!["run", s(&scene), "--model", s(&model), "--behavior", "sudden_cut_in", "--t0", "1", "--out", &o_run];
+    let run_at: Vec<&str> = run_at.into_iter().chain(["--layouts", "compare:FRONT", "--fps", "2"]).collect();
     // (command before the flag, the flag, after, a sane value that must succeed, allowed codes)
     type Run<'a> = (Vec<&'a str>, &'a str, Vec<&'a str>, &'a str, &'a [i32]);
     let runs: Vec<Run> = vec![
@@ -62,6 +66,7 @@ fn numeric_flags_exit_0_2_or_3() {
         (reason_at.clone(), "--t0", vec![], "1", &[0, 2, 3]),
         (reason_at.clone(), "--ttc", vec!["--t0", "1"], "3", &[0, 2, 3]),
         (synth2.clone(), "--cameras", vec![], "1", &[0, 2]),
+        (run_at.clone(), "--horizon", vec![], "5", &[0, 2, 3]),
         (vec!["train", s(&scene), "--out", &o_m, "--force"], "--iters", vec![], "1", &[0, 2]),
     ];
     let mut n = 0;

@@ -122,7 +122,8 @@ mod tests {
             valid: true,
             motion: Some(LoggedMotion::Moving),
         };
-        let track = Track { id: "car".into(), class: ObjectClass::Vehicle, states: vec![state(0, 10.0), state(1, 11.0)] };
+        let track =
+            Track { id: "car".into(), class: ObjectClass::Vehicle, states: vec![state(0, 10.0), state(1, 11.0)] };
         let scene = scene_with(track.clone());
         // A grid on the car's rear face (x = 8), road points under it, and a point beside it.
         let mut pts: Vec<DVec3> = (0..10)
@@ -143,7 +144,12 @@ mod tests {
             fy: 40.0,
             cx: 32.0,
             cy: 24.0,
-            camera_from_world: [[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.75], [1.0, 0.0, 0.0, -4.05], [0.0, 0.0, 0.0, 1.0]],
+            camera_from_world: [
+                [0.0, -1.0, 0.0, 0.0],
+                [0.0, 0.0, -1.0, 0.75],
+                [1.0, 0.0, 0.0, -4.05],
+                [0.0, 0.0, 0.0, 1.0],
+            ],
             near: 0.01,
             far: 1e4,
         };
