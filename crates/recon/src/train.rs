@@ -304,6 +304,9 @@ mod tests {
         cfg.densify.reset_actors = true;
         let mut st = state();
         density_control(&mut st, &cfg, 10.0, every);
-        assert!((st.model.actors[0].gaussians.opacity_logits[0] - cap).abs() < 1e-12 && st.adam.m[1].opacity_logits[0] == 0.0);
+        assert!(
+            (st.model.actors[0].gaussians.opacity_logits[0] - cap).abs() < 1e-12
+                && st.adam.m[1].opacity_logits[0] == 0.0
+        );
     }
 }
