@@ -227,6 +227,13 @@ fn degenerate_scenes_match_the_reference() {
     g.log_scales[23] = [f64::INFINITY, 0.0, 0.0];
     g.rotations[33] = [0.0; 4];
     g.opacity_logits[43] = f64::NAN;
+    // Extreme but finite numbers: far off, overflowing and underflowing scales, saturated logits.
+    g.means[53] = [1e20, -1e20, 5.0];
+    g.log_scales[63] = [80.0, 80.0, 80.0];
+    g.log_scales[73] = [-80.0, -80.0, -80.0];
+    g.opacity_logits[83] = 1e30;
+    g.opacity_logits[93] = -1e30;
+    g.rotations[103] = [1e-30, 0.0, 0.0, 1e-30];
     let up = Up::random(64 * 48, 0, 9);
     // Every kind but the ones behind is drawn by the reference (the near-plane ones included),
     // so each is compared.
