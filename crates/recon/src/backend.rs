@@ -135,11 +135,14 @@ mod tests {
             b.for_each_drawn(&ctx, &mut |i, r| drawn.push((i, r)));
             (img, gr, drawn)
         }
-        let (i64_, g64, d64) = run(Cpu, &g, &cam, &opts, &up);
+        let (i64_, g64, mut d64) = run(Cpu, &g, &cam, &opts, &up);
         let (i32_, g32, d32) = run(CpuF32, &g, &cam, &opts, &up);
+        // The reference reports in depth order, the f32 path in index order.
+        d64.sort_by_key(|d| d.0);
         assert_eq!(d32.len(), d64.len());
+        assert!(d32.len() > 100);
         for ((i, r), (j, s)) in d32.iter().zip(&d64) {
-            assert_eq!(i, j, "same Gaussians in the same order");
+            assert_eq!(i, j, "the same Gaussians");
             assert!((r - s).abs() <= 1e-5 * s.max(1.0), "extent {r} vs {s}");
         }
         let worst =

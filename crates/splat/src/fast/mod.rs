@@ -76,14 +76,16 @@ struct BackScratch {
 }
 
 impl FastContext {
-    /// Calls `f(index, half_extent_px)` for every Gaussian the last render drew, front to back.
+    /// Calls `f(index, half_extent_px)` for every Gaussian the last render drew, in index order
+    /// (the reference's is depth order; each Gaussian is reported once either way).
     pub fn for_each_drawn(&self, f: &mut dyn FnMut(usize, f64)) {
         match &self.reference {
             Some(r) => r.proj.iter().for_each(|p| f(p.index, p.extent[0].max(p.extent[1]))),
             None => {
-                for &i in &self.index {
-                    let h = &self.hot[i as usize];
-                    f(i as usize, h.extent[0].max(h.extent[1]) as f64);
+                for (i, (h, d)) in self.hot.iter().zip(&self.drawn).enumerate() {
+                    if *d {
+                        f(i, h.extent[0].max(h.extent[1]) as f64);
+                    }
                 }
             }
         }
