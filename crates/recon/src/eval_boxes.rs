@@ -18,7 +18,7 @@
 use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::data::View;
-use crate::eval_lidar::{points_on, silhouette, Sweep};
+use crate::eval_lidar::{points_on, Sweep, MIN_POINTS};
 use crate::metrics::iou;
 use crate::model::SceneModel;
 use crate::pose::{box_pose_at, BoxPose};
@@ -58,6 +58,12 @@ fn hull_mask(v: &View, pose: &BoxPose, corners: &[DVec3]) -> Option<Vec<bool>> {
     let mut mask = vec![false; w * h];
     fill_hull(&hull(px?), w, h, &mut mask);
     Some(mask)
+}
+
+/// The hull mask of the LiDAR points `on_car` (box frame, `eval_lidar::points_on`) with the box at
+/// `pose`, when there are at least `eval_lidar::MIN_POINTS`.
+fn lidar_mask(v: &View, pose: &BoxPose, on_car: &[DVec3]) -> Option<Vec<bool>> {
+    (on_car.len() >= MIN_POINTS).then(|| hull_mask(v, pose, on_car)).flatten()
 }
 
 fn box_mask(v: &View, pose: &BoxPose, size_lwh: [f64; 3]) -> Option<Vec<bool>> {
@@ -142,7 +148,7 @@ pub fn moving_vehicle_iou<B: Backend>(
         let mut mask: Vec<bool> = alone.alpha.iter().map(|a| *a > 0.5).collect();
         visible(&mut mask);
         let on_car = sweep.and_then(|s| points_on(scene, track, state.size_lwh, s)).unwrap_or_default();
-        let lidar_iou = silhouette(scene, track, &on_car, v).and_then(|mut m| {
+        let lidar_iou = lidar_mask(v, &pose, &on_car).and_then(|mut m| {
             visible(&mut m);
             (m.iter().filter(|x| **x).count() >= MIN_PIXELS).then(|| iou(&mask, &m)).flatten()
         });
@@ -203,6 +209,15 @@ mod tests {
         let np = p.iter().filter(|x| **x).count();
         assert!(p.iter().zip(&m).all(|(a, b)| !a || *b) && np < n && np > n / 2, "{np} of {n}");
         assert!(moving(&s));
+        // LiDAR points on the rear face (box frame x = -2): a silhouette inside the hull; too few, none.
+        let face: Vec<DVec3> = (0..10)
+            .flat_map(|i| (0..8).map(move |k| DVec3::new(-2.0, -0.9 + 0.2 * i as f64, -0.6 + 0.15 * k as f64)))
+            .collect();
+        let l = lidar_mask(&v, &pose, &face).unwrap();
+        let nl = l.iter().filter(|x| **x).count();
+        // 1.8 m x 1.05 m at 8 m: 9 x 5.25 px.
+        assert!((35..=60).contains(&nl) && l.iter().zip(&m).all(|(a, b)| !a || *b), "{nl} pixels");
+        assert!(lidar_mask(&v, &pose, &face[..MIN_POINTS - 1]).is_none());
         // Behind the camera: no mask.
         let behind = BoxPose { center: [-10.0, 0.0, 0.0], heading: 0.0 };
         assert!(box_mask(&v, &behind, s.size_lwh).is_none());

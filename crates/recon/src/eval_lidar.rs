@@ -10,11 +10,10 @@
 //! The reference exists only where the sweep measured the car: at least [`MIN_POINTS`] points
 //! above the box floor (the lowest [`FLOOR_M`] of the box holds road returns), which on PandaSet
 //! 002 is every moving car within about 35 m; a pair without one is counted, not scored.
+//! `eval_boxes` projects the points and scores the mask as it does the box's.
 
-use crate::data::View;
 use crate::pose::box_pose_at;
-use crate::priors::objects::{fill_hull, hull};
-use scene::glam::{DVec2, DVec3};
+use scene::glam::DVec3;
 use scene::{Scene, Track};
 
 /// A silhouette needs at least this many points on the vehicle.
@@ -59,29 +58,6 @@ pub fn points_on(scene: &Scene, track: &Track, size_lwh: [f64; 3], sweep: &Sweep
             .filter(|b| b.x.abs() <= half[0] && b.y.abs() <= half[1] && b.z.abs() <= half[2] && b.z >= floor)
             .collect(),
     )
-}
-
-/// The silhouette mask in view `v` of box-frame points `on_car` of `track` (at least
-/// [`MIN_POINTS`], all in front of the camera), placed by the box at the view's time.
-pub fn silhouette(scene: &Scene, track: &Track, on_car: &[DVec3], v: &View) -> Option<Vec<bool>> {
-    if on_car.len() < MIN_POINTS {
-        return None;
-    }
-    let world_from_box = box_pose_at(scene, track, v.time)?.world_from_box();
-    let c = &v.cam;
-    let m = &c.camera_from_world;
-    let px: Option<Vec<DVec2>> = on_car
-        .iter()
-        .map(|b| {
-            let p = world_from_box.transform_point(*b);
-            let q: [f64; 3] = std::array::from_fn(|r| m[r][0] * p.x + m[r][1] * p.y + m[r][2] * p.z + m[r][3]);
-            (q[2] > 0.1).then(|| DVec2::new(c.fx * q[0] / q[2] + c.cx, c.fy * q[1] / q[2] + c.cy))
-        })
-        .collect();
-    let (w, h) = (v.width(), v.height());
-    let mut mask = vec![false; w * h];
-    fill_hull(&hull(px?), w, h, &mut mask);
-    Some(mask)
 }
 
 #[cfg(test)]
@@ -135,31 +111,5 @@ mod tests {
         let on = points_on(&scene, &scene.tracks[0], [4.0, 2.0, 1.5], &sweep).unwrap();
         assert_eq!(on.len(), 80, "the rear face's grid, not the road or the point beside");
         assert!(on.iter().all(|b| (b.x + 1.95).abs() < 1e-9));
-        // Seen from 5 m behind the box at frame 1 (the car has moved on 1 m): the silhouette is the
-        // rear face where the box is then.
-        let cam = splat::Camera {
-            width: 64,
-            height: 48,
-            fx: 40.0,
-            fy: 40.0,
-            cx: 32.0,
-            cy: 24.0,
-            camera_from_world: [
-                [0.0, -1.0, 0.0, 0.0],
-                [0.0, 0.0, -1.0, 0.75],
-                [1.0, 0.0, 0.0, -4.05],
-                [0.0, 0.0, 0.0, 1.0],
-            ],
-            near: 0.01,
-            far: 1e4,
-        };
-        let v = View { frame: 1, camera: "C".into(), time: 0.1, cam, targets: Default::default(), held_out: true };
-        let m = silhouette(&scene, &scene.tracks[0], &on, &v).unwrap();
-        // The face's points span 1.8 m x 1.05 m at 5 m: 14.4 x 8.4 px around the image centre.
-        let n = m.iter().filter(|x| **x).count();
-        assert!((90..=150).contains(&n), "{n} pixels");
-        assert!(m[22 * 64 + 32] && !m[24 * 64 + 50], "centred on the face, nothing beside it");
-        // Too few points: no reference.
-        assert!(silhouette(&scene, &scene.tracks[0], &on[..MIN_POINTS - 1], &v).is_none());
     }
 }
