@@ -3,44 +3,12 @@
 //! 1/255 cut-off, 0.99 clamp and early stop all active, on scenes dense enough that pixels
 //! saturate. Finite differences cannot test this mode (it is not smooth); the reference can.
 
+mod common;
+
+use common::{dense_scene as scene, tilted_camera};
 use splat::backward::{backward, render_backward_brute_force, Gradients, Upstream};
 use splat::random::XorShift as Rng;
 use splat::render::{render_with_context, Features, RenderOptions};
-use splat::{Camera, Gaussians};
-
-fn camera() -> Camera {
-    Camera {
-        width: 70,
-        height: 45,
-        fx: 60.0,
-        fy: 61.0,
-        cx: 35.2,
-        cy: 22.7,
-        camera_from_world: [
-            [1.0, 0.0, 0.0, 0.1],
-            [0.0, 0.995, -0.0998, 0.0],
-            [0.0, 0.0998, 0.995, 0.2],
-            [0.0, 0.0, 0.0, 1.0],
-        ],
-        near: 0.01,
-        far: 100.0,
-    }
-}
-
-fn scene(n: usize, seed: u64) -> Gaussians {
-    let mut r = Rng(seed);
-    Gaussians {
-        means: (0..n).map(|_| [r.range(-1.6, 1.6), r.range(-1.0, 1.0), r.range(2.0, 5.0)]).collect(),
-        log_scales: (0..n).map(|_| [r.range(-2.5, -1.2), r.range(-2.5, -1.2), r.range(-3.5, -2.0)]).collect(),
-        rotations: (0..n)
-            .map(|_| [r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0)])
-            .collect(),
-        // Up to sigmoid(6) = 0.9975, so some alphas hit the 0.99 clamp.
-        opacity_logits: (0..n).map(|_| r.range(-2.0, 6.0)).collect(),
-        sh_degree: 2,
-        sh: (0..n * 9 * 3).map(|_| r.range(-0.6, 0.6)).collect(),
-    }
-}
 
 fn flat(g: &Gradients) -> Vec<f64> {
     let mut v: Vec<f64> = g.means.iter().flatten().copied().collect();
@@ -55,7 +23,7 @@ fn flat(g: &Gradients) -> Vec<f64> {
 
 #[test]
 fn tiled_backward_equals_brute_force() {
-    let cam = camera();
+    let cam = tilted_camera(70, 45, 60.0, 61.0, 35.2, 22.7);
     let n_px = (cam.width * cam.height) as usize;
     for (seed, aa, world) in [(21u64, false, false), (22, true, true)] {
         let g = scene(900, seed);

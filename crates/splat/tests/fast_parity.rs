@@ -12,6 +12,10 @@
 //! A wrong formula (a missing term, a sign) moves these by orders of magnitude; `tolerances_bite`
 //! checks that a small real change of the scene already breaks them.
 
+mod common;
+
+use common::{dense_scene, tilted_camera};
+
 use splat::backward::{backward_into, Gradients, Upstream};
 use splat::fast::{self, FastContext};
 use splat::random::{random_gaussians, XorShift as Rng};
@@ -19,37 +23,8 @@ use splat::render::{render_into, render_with_context, Context, Features, Image, 
 use splat::{Camera, Gaussians};
 
 fn camera(w: u32, h: u32) -> Camera {
-    Camera {
-        width: w,
-        height: h,
-        fx: 0.86 * w as f64,
-        fy: 0.87 * w as f64,
-        cx: 0.503 * w as f64,
-        cy: 0.505 * h as f64,
-        camera_from_world: [
-            [1.0, 0.0, 0.0, 0.1],
-            [0.0, 0.995, -0.0998, 0.0],
-            [0.0, 0.0998, 0.995, 0.2],
-            [0.0, 0.0, 0.0, 1.0],
-        ],
-        near: 0.01,
-        far: 100.0,
-    }
-}
-
-/// Dense: up to sigmoid(6) opacity, so pixels saturate and alphas clamp.
-fn dense_scene(n: usize, seed: u64) -> Gaussians {
-    let mut r = Rng(seed);
-    Gaussians {
-        means: (0..n).map(|_| [r.range(-1.6, 1.6), r.range(-1.0, 1.0), r.range(2.0, 5.0)]).collect(),
-        log_scales: (0..n).map(|_| [r.range(-2.5, -1.2), r.range(-2.5, -1.2), r.range(-3.5, -2.0)]).collect(),
-        rotations: (0..n)
-            .map(|_| [r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0), r.range(-1.0, 1.0)])
-            .collect(),
-        opacity_logits: (0..n).map(|_| r.range(-2.0, 6.0)).collect(),
-        sh_degree: 2,
-        sh: (0..n * 9 * 3).map(|_| r.range(-0.6, 0.6)).collect(),
-    }
+    let (wf, hf) = (w as f64, h as f64);
+    tilted_camera(w, h, 0.86 * wf, 0.87 * wf, 0.503 * wf, 0.505 * hf)
 }
 
 struct Up {
