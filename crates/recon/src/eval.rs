@@ -12,12 +12,14 @@ use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::data::{PriorLoader, View};
 use crate::error::ReconError;
+use crate::eval_lidar::Sweep;
 use crate::metrics::{iou, normal_errors, psnr, ssim_rgb};
 use crate::model::SceneModel;
 use crate::view::draw;
 use rayon::prelude::*;
 use scene::Scene;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
@@ -86,6 +88,7 @@ fn score<B: Backend>(
     scene: &Scene,
     scene_dir: &Path,
     v: &View,
+    sweep: Option<&Sweep>,
 ) -> Result<ViewScore, ReconError> {
     let d = draw(backend, model, scene, &v.cam, v.time, Layers::All, &|_| None);
     let t = &v.targets;
@@ -131,8 +134,7 @@ fn score<B: Backend>(
             }
         }
     } else {
-        let sweep = crate::eval_lidar::Sweep::load(scene_dir, scene, v.frame)?;
-        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v, sweep.as_ref());
+        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v, sweep);
     }
     Ok(s)
 }
@@ -147,8 +149,18 @@ pub fn evaluate<B: Backend>(
 ) -> Result<EvalReport, ReconError> {
     let held: Vec<&View> = views.iter().filter(|v| v.held_out).collect();
     let chosen: Vec<&View> = if held.is_empty() { views.iter().collect() } else { held };
-    let per_view: Vec<ViewScore> =
-        chosen.par_iter().map(|v| score(backend, model, scene, scene_dir, v)).collect::<Result<_, _>>()?;
+    // Each frame's own sweep, read once for all of its cameras' views.
+    let frames: std::collections::BTreeSet<usize> = chosen.iter().map(|v| v.frame).collect();
+    let mut sweeps: BTreeMap<usize, Sweep> = BTreeMap::new();
+    for f in frames {
+        if let Some(sw) = Sweep::load(scene_dir, scene, f)? {
+            sweeps.insert(f, sw);
+        }
+    }
+    let per_view: Vec<ViewScore> = chosen
+        .par_iter()
+        .map(|v| score(backend, model, scene, scene_dir, v, sweeps.get(&v.frame)))
+        .collect::<Result<_, _>>()?;
     let pick = |f: &dyn Fn(&ViewScore) -> Option<f64>| mean(per_view.iter().filter_map(f));
     Ok(EvalReport {
         views: per_view.len(),
