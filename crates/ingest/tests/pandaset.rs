@@ -105,13 +105,15 @@ fn pandaset_002_counts_path_and_conventions() {
         }
     }
     assert_eq!(checked, 159);
-    boxes_meet_their_lidar_points_at_the_capture_time(&s, &tmp.path().join("scene"));
+    boxes_meet_their_lidar_points_at_the_capture_time(&s, &tmp.path().join("scene"), &src);
 }
 
 /// The cuboids were drawn on the sweeps, so each moving car's box, carried from its frame's time
-/// to the time the sweep crossed it (the capture clock read off the cameras), holds its LiDAR
-/// points; at the frame's time itself (50 ms later ahead of the ego) it misses some of them.
-fn boxes_meet_their_lidar_points_at_the_capture_time(s: &Scene, scene_dir: &Path) {
+/// to the time the sweep crossed it (the capture clock read off the cameras), holds its raw LiDAR
+/// points; at the frame's time itself (50 ms later ahead of the ego) it misses some of them. The
+/// stored sweeps have those points carried to the frame's time with their boxes, so there the
+/// boxes hold them.
+fn boxes_meet_their_lidar_points_at_the_capture_time(s: &Scene, scene_dir: &Path, src: &Path) {
     let frame_times: Vec<f64> = s.frames.iter().map(|f| f.timestamp_s).collect();
     let image_times: Vec<Vec<f64>> = s
         .cameras
@@ -130,12 +132,18 @@ fn boxes_meet_their_lidar_points_at_the_capture_time(s: &Scene, scene_dir: &Path
         .map(|(c, t)| (c.ego_from_camera.transform_vector(DVec3::X), t.as_slice()))
         .collect();
     let clock = ingest::pandaset::capture::CaptureClock::from_cameras(&axes, &frame_times);
-    let (mut at_capture, mut at_frame) = (0usize, 0usize);
+    let (mut at_capture, mut at_frame, mut stored_at_frame) = (0usize, 0usize, 0usize);
     for f in s.frames.iter().filter(|f| f.lidar.is_some()) {
-        let pts = scene::format::read_lidar(&scene_dir.join(&f.lidar.as_ref().unwrap().path)).unwrap();
-        let world: Vec<DVec3> = pts
+        let as_world = |p: &[f32; 4]| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        let raw: Vec<DVec3> = ingest::pandaset::files::read_sweep(&src.join(format!("lidar/{:02}.bin", f.index)))
+            .unwrap()
             .iter()
-            .map(|p| f.world_from_ego.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+            .map(as_world)
+            .collect();
+        let stored: Vec<DVec3> = scene::format::read_lidar(&scene_dir.join(&f.lidar.as_ref().unwrap().path))
+            .unwrap()
+            .iter()
+            .map(|p| f.world_from_ego.transform_point(as_world(p)))
             .collect();
         for t in &s.tracks {
             let Some(st) = t.state_at(f.index) else { continue };
@@ -144,19 +152,25 @@ fn boxes_meet_their_lidar_points_at_the_capture_time(s: &Scene, scene_dir: &Path
                 continue;
             }
             let offset = clock.offset_of(f.world_from_ego.inverse().transform_point(st.center));
-            let count = |centre: DVec3| {
+            let count = |centre: DVec3, points: &[DVec3]| {
                 let box_from_world = scene::frames::world_from_box(centre, st.heading).inverse();
-                world
+                points
                     .iter()
                     .map(|p| box_from_world.transform_point(*p))
                     .filter(|b| (0..3).all(|i| b[i].abs() < st.size_lwh[i] / 2.0))
                     .count()
             };
-            at_capture += count(st.center + v * offset);
-            at_frame += count(st.center);
+            at_capture += count(st.center + v * offset, &raw);
+            at_frame += count(st.center, &raw);
+            stored_at_frame += count(st.center, &stored);
         }
     }
+    println!("moving cars' raw points in their boxes: {at_capture} at capture, {at_frame} at the frame time; stored: {stored_at_frame}");
     assert!(at_capture > 1000 && at_capture as f64 > 1.1 * at_frame as f64, "{at_capture} vs {at_frame} points");
+    assert!(
+        stored_at_frame as f64 >= 0.98 * at_capture as f64,
+        "stored sweeps: {stored_at_frame} points in the boxes at the frame time, raw at capture {at_capture}"
+    );
 }
 
 /// A small PandaSet-like folder: 3 frames, 1 camera of 16x12, one sweep, one moving car.

@@ -20,7 +20,8 @@
 //!   name's log line (a rigid rig gives centimetres).
 //! * **Tracks** from the cuboids (`cuboids`), each box carried from the time the sweep saw it
 //!   (`capture`: read off the cameras' firing times) to its frame's time; **LiDAR** sweeps are
-//!   stored in the ego frame of their frame, as the scene format wants.
+//!   stored in the ego frame of their frame, as the scene format wants, their points on moving
+//!   boxes carried to the frame's time with the boxes (`capture::carry_points`).
 //!
 //! Every check happens before anything is copied; errors name the file and field.
 
@@ -293,6 +294,11 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         lidar_above_road_m = lidar_above_road,
         "PandaSet cuboids read"
     );
+    let mut carried = 0;
+    for (k, pts) in &mut sweep_points {
+        carried += capture::carry_points(pts, &capture::carried_boxes(&tracks, *k, lidar_times[*k], &seen));
+    }
+    tracing::info!(points = carried, "sweep points on moving boxes carried to their frames' times");
     // Everything is checked: now copy.
     if let Some(root) = staging {
         for sub in [IMAGES_DIR, LIDAR_DIR] {
