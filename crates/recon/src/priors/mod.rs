@@ -108,13 +108,7 @@ fn frame_depths(
     let frame = &scene.frames[f];
     let mut out = HashMap::new();
     let loaded = if sweeps.any() {
-        Some(
-            sweeps
-                .sources(f)
-                .into_iter()
-                .map(|(k, static_only)| sweeps.load(k, static_only))
-                .collect::<Result<Vec<_>, _>>()?,
-        )
+        Some(sweeps.sources(f).into_iter().map(|k| sweeps.load(k)).collect::<Result<Vec<_>, _>>()?)
     } else {
         None
     };

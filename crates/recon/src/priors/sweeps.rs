@@ -1,21 +1,25 @@
 //! The LiDAR points a camera image's depth prior is made of, in the ego frame at the image's own
 //! time.
 //!
-//! * A frame with its own sweep uses that sweep whole (moving objects included: same instant),
-//!   carried from the frame's ego pose to the image's (`Scene::world_from_ego_of_image`; the
-//!   identity where images have no time of their own).
-//! * A frame without one (PandaSet 002 has sweeps on 9 of 80 frames) borrows the static part of
-//!   the [`BORROWED_SWEEPS`] sweeps nearest in time, carried through the world frame: the points
-//!   inside the box of any object that moves during the log (a `Moving` label on any state, or
-//!   its box centre travelling more than [`MOVED_M`]) at the sweep's frame are dropped, since
-//!   that object is elsewhere at the image's time; the box is lengthened by what the object
-//!   covers in a sweep ([`SWEEP_S`]), as the sweep saw it up to that long before or after the
-//!   frame's time. Parked cars and the street stay.
+//! * A frame with its own sweep uses that sweep; a frame without one (PandaSet 002 has sweeps on
+//!   9 of 80 frames) borrows the [`BORROWED_SWEEPS`] sweeps nearest in time. Either way the sweep
+//!   is carried through the world frame to the image's ego pose (`Scene::world_from_ego_of_image`).
+//! * The points on an object that moves during the log (a `Moving` label on any state, or its box
+//!   centre travelling more than [`MOVED_M`]) are taken out at the sweep's frame (inside its box
+//!   grown by [`BOX_MARGIN`], its length also by what the object covers in a sweep, [`SWEEP_S`],
+//!   above the road band `init::ACTOR_FLOOR_M`), kept in the object's box frame and put back
+//!   where the box is at the image's time (`pose::box_pose_at`); an object that is not there then
+//!   loses them. Without this, a car at an image of a frame without a sweep had no points of its
+//!   own, and the static points behind it, seen from the nearest sweeps while it was elsewhere,
+//!   gave its pixels the depth of the street behind: the depth loss then made the car's model
+//!   transparent (on PandaSet 002, passing cars' median opacity fell to 0.02).
 //!
 //! Points behind what the camera sees from its new position are left to the depth prior's
 //! occlusion filter (`lidar_depth`), as for the frame's own sweep.
 
 use super::PriorError;
+use crate::init::ACTOR_FLOOR_M;
+use crate::pose::box_pose_at;
 use scene::frames::world_from_box;
 use scene::glam::DVec3;
 use scene::{Frame, ImageRef, LoggedMotion, ObjectClass, Scene, Track, Transform3};
@@ -63,11 +67,10 @@ impl<'a> Sweeps<'a> {
         !self.with_lidar.is_empty()
     }
 
-    /// The sweeps frame `f`'s images are made of: its own, else the nearest few (with the
-    /// moving objects' points to drop).
-    pub fn sources(&self, f: usize) -> Vec<(usize, bool)> {
+    /// The sweeps frame `f`'s images are made of: its own, else the nearest few.
+    pub fn sources(&self, f: usize) -> Vec<usize> {
         if self.scene.frames[f].lidar.is_some() {
-            return vec![(f, false)];
+            return vec![f];
         }
         let t = self.scene.frames[f].timestamp_s;
         let mut near = self.with_lidar.clone();
@@ -76,59 +79,85 @@ impl<'a> Sweeps<'a> {
             d(a).total_cmp(&d(b)).then(a.cmp(b))
         });
         near.truncate(BORROWED_SWEEPS);
-        near.into_iter().map(|k| (k, true)).collect()
+        near
     }
 
-    /// The sweep of frame `k` in its own ego frame (moving objects' points dropped when
-    /// `static_only`), with that frame's `world_from_ego`.
-    pub fn load(&self, k: usize, static_only: bool) -> Result<(Transform3, Vec<[f32; 4]>), PriorError> {
+    /// The sweep of frame `k`: its static points in its own ego frame, and each moving object's
+    /// points in that object's box frame.
+    pub fn load(&self, k: usize) -> Result<Loaded<'a>, PriorError> {
         let frame = &self.scene.frames[k];
-        let Some(l) = &frame.lidar else { return Ok((frame.world_from_ego, Vec::new())) };
+        let mut out = Loaded { world_from_ego: frame.world_from_ego, still: Vec::new(), movers: Vec::new() };
+        let Some(l) = &frame.lidar else { return Ok(out) };
         let pts = scene::format::read_lidar(&self.scene_dir.join(&l.path))?;
-        if !static_only {
-            return Ok((frame.world_from_ego, pts));
-        }
-        let boxes: Vec<(Transform3, [f64; 3])> = self
+        let boxes: Vec<(&Track, Transform3, [f64; 3], f64)> = self
             .moving
             .iter()
-            .filter_map(|t| t.state_at(k))
-            .map(|s| {
+            .filter_map(|t| t.state_at(k).map(|s| (*t, s)))
+            .map(|(t, s)| {
                 let box_from_ego = world_from_box(s.center, s.heading).inverse() * frame.world_from_ego;
                 let mut half = s.size_lwh.map(|v| v * BOX_MARGIN / 2.0);
                 half[0] += s.velocity.map_or(0.0, |v| v.truncate().length() * SWEEP_S);
-                (box_from_ego, half)
+                (t, box_from_ego, half, -s.size_lwh[2] / 2.0 + ACTOR_FLOOR_M)
             })
             .collect();
-        let kept = pts
-            .into_iter()
-            .filter(|p| {
-                let e = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                !boxes.iter().any(|(box_from_ego, half)| {
-                    let b = box_from_ego.transform_point(e);
-                    b.x.abs() <= half[0] && b.y.abs() <= half[1] && b.z.abs() <= half[2]
-                })
-            })
-            .collect();
-        Ok((frame.world_from_ego, kept))
+        let mut movers: Vec<Vec<[f32; 4]>> = vec![Vec::new(); boxes.len()];
+        for p in pts {
+            let e = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let on = boxes.iter().enumerate().find_map(|(i, (_, box_from_ego, half, floor))| {
+                let b = box_from_ego.transform_point(e);
+                (b.x.abs() <= half[0] && b.y.abs() <= half[1] && b.z.abs() <= half[2] && b.z >= *floor)
+                    .then_some((i, b))
+            });
+            match on {
+                Some((i, b)) => movers[i].push([b.x as f32, b.y as f32, b.z as f32, p[3]]),
+                None => out.still.push(p),
+            }
+        }
+        out.movers = boxes.into_iter().zip(movers).filter(|(_, m)| !m.is_empty()).map(|((t, ..), m)| (t, m)).collect();
+        Ok(out)
     }
 
-    /// Loaded sweeps' points in the ego frame `image` of `frame` was taken from (f64 chains, so
-    /// a global world frame's large coordinates cost no precision).
-    pub fn in_image_ego(
-        &self,
-        frame: &Frame,
-        image: &ImageRef,
-        loaded: &[(Transform3, Vec<[f32; 4]>)],
-    ) -> Vec<[f32; 4]> {
+    /// Loaded sweeps' points in the ego frame `image` of `frame` was taken from, the moving
+    /// objects' where their boxes are at the image's time (f64 chains, so a global world frame's
+    /// large coordinates cost no precision).
+    pub fn in_image_ego(&self, frame: &Frame, image: &ImageRef, loaded: &[Loaded]) -> Vec<[f32; 4]> {
         let ego_from_world = self.scene.world_from_ego_of_image(frame, image).inverse();
-        let mut out = Vec::with_capacity(loaded.iter().map(|l| l.1.len()).sum());
-        for (world_from_sweep_ego, pts) in loaded {
-            let img_from_sweep = ego_from_world * *world_from_sweep_ego;
+        let t = image.timestamp_s.unwrap_or(frame.timestamp_s);
+        let mut out = Vec::with_capacity(loaded.iter().map(|l| l.len()).sum());
+        let mut carry = |from: Transform3, pts: &[[f32; 4]]| {
             out.extend(pts.iter().map(|p| {
-                let q = img_from_sweep.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+                let q = from.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
                 [q.x as f32, q.y as f32, q.z as f32, p[3]]
             }));
+        };
+        for l in loaded {
+            carry(ego_from_world * l.world_from_ego, &l.still);
+            for (track, pts) in &l.movers {
+                if let Some(pose) = box_pose_at(self.scene, track, t) {
+                    carry(ego_from_world * pose.world_from_box(), pts);
+                }
+            }
         }
         out
+    }
+}
+
+/// One loaded sweep (`Sweeps::load`).
+pub struct Loaded<'a> {
+    pub world_from_ego: Transform3,
+    /// The points of everything that does not move, in the sweep frame's ego frame.
+    pub still: Vec<[f32; 4]>,
+    /// Each moving object's points, in its box frame at the sweep's frame.
+    pub movers: Vec<(&'a Track, Vec<[f32; 4]>)>,
+}
+
+impl Loaded<'_> {
+    /// How many points in all.
+    pub fn len(&self) -> usize {
+        self.still.len() + self.movers.iter().map(|m| m.1.len()).sum::<usize>()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 }
