@@ -78,6 +78,14 @@ pub struct EvalReport {
     /// the pairs without one are `moving_vehicle_box_iou.count` minus its count.
     #[serde(default)]
     pub moving_vehicle_lidar_iou: Option<Mean>,
+    /// The same three means over the clear pairs only (`VehicleIou::clear`: at least 25 pixels
+    /// tall, at least half visible); the others are the counts above minus these.
+    #[serde(default)]
+    pub moving_vehicle_clear_box_iou: Option<Mean>,
+    #[serde(default)]
+    pub moving_vehicle_clear_profile_iou: Option<Mean>,
+    #[serde(default)]
+    pub moving_vehicle_clear_lidar_iou: Option<Mean>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -139,6 +147,11 @@ fn score<B: Backend>(
     Ok(s)
 }
 
+/// The clear (view, moving vehicle) pairs of all views.
+fn clear(per_view: &[ViewScore]) -> impl Iterator<Item = &crate::eval_boxes::VehicleIou> {
+    per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter(|x| x.clear()))
+}
+
 /// Scores the held-out views of `views` (every view when none is held out).
 pub fn evaluate<B: Backend>(
     backend: &B,
@@ -181,6 +194,9 @@ pub fn evaluate<B: Backend>(
         moving_vehicle_lidar_iou: mean(
             per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.lidar_iou)),
         ),
+        moving_vehicle_clear_box_iou: mean(clear(&per_view).map(|x| x.box_iou)),
+        moving_vehicle_clear_profile_iou: mean(clear(&per_view).map(|x| x.profile_iou)),
+        moving_vehicle_clear_lidar_iou: mean(clear(&per_view).filter_map(|x| x.lidar_iou)),
         lpips: None,
         per_view,
     })

@@ -187,6 +187,9 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     show("moving-vehicle IoU, box hull", &r.moving_vehicle_box_iou);
     show("moving-vehicle IoU, profile", &r.moving_vehicle_profile_iou);
     show("moving-vehicle IoU, LiDAR", &r.moving_vehicle_lidar_iou);
+    show("  clear views: box hull", &r.moving_vehicle_clear_box_iou);
+    show("  clear views: profile", &r.moving_vehicle_clear_profile_iou);
+    show("  clear views: LiDAR", &r.moving_vehicle_clear_lidar_iou);
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
 }
