@@ -63,6 +63,19 @@ pub struct DensifyConfig {
     /// ghosts). The reset exists to clear floaters; an actor's Gaussians are held inside its
     /// box by the box rule, so they have no free space to float in.
     pub reset_actors: bool,
+    /// An actor's Gaussian is pruned when its `actor_sigma`-sigma ellipsoid reaches out of the
+    /// actor's box padded by 10 % along any box axis (0: only its centre must stay inside). A
+    /// Gaussian centred in the box may otherwise be metres wide and paint the road beside the
+    /// car, or its shadow, as the car (on PandaSet 002 that was up to two thirds of a distant
+    /// car's rendered silhouette).
+    pub actor_sigma: f64,
+    /// Whether the box rule keeps pruning the actors after `until`, every `interval` iterations,
+    /// when nothing else is cloned, split or pruned: Gaussians keep moving and growing to the end.
+    pub contain_to_end: bool,
+    /// Whether every density step also prunes the background's Gaussians inside the space the
+    /// tracked objects take up at some time of the log (`actor_space`), so the static background
+    /// cannot stand in for a moving car.
+    pub clear_actor_space: bool,
     pub prune_opacity: f64,
     /// After the first opacity reset: prune Gaussians wider than this on screen (pixels; 0: off,
     /// the default, because a street camera sees kerbs, parked cars and walls a metre or two away,
@@ -139,6 +152,9 @@ impl Default for DensifyConfig {
             percent_dense: 0.01,
             opacity_reset_every: 0.1,
             reset_actors: false,
+            actor_sigma: 2.0,
+            contain_to_end: true,
+            clear_actor_space: true,
             prune_opacity: 0.005,
             max_screen_size: 0.0,
             max_world_fraction: 0.1,

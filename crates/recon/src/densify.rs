@@ -8,6 +8,7 @@
 //! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
 //! box are pruned, so a car's model cannot smear into the street it drives through.
 
+use crate::actor_space::ActorSpace;
 use crate::densify_rule::{finish_codes, row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};
 use crate::model::{empty, push_row, push_zeros};
 use crate::optim::AdamState;
@@ -107,15 +108,20 @@ fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u8], 
     (*g, *m, *v) = (og, om, ov);
 }
 
-/// Clones, splits and prunes one set (`g` with its moments `m`, `v`) by `rule`.
+/// Clones, splits and prunes one set (`g` with its moments `m`, `v`) by `rule`; rows whose
+/// centre is in `space` are pruned too (the background's, `actor_space`).
 pub fn densify_and_prune(
     g: &mut Gaussians,
     m: &mut Gaussians,
     v: &mut Gaussians,
     stats: &Stats,
     rule: &Rule,
+    space: Option<&ActorSpace>,
 ) -> Counts {
     let mut codes = plan(g, stats, rule);
+    if let Some(space) = space {
+        space.prune_codes(&mut codes, &g.means);
+    }
     let counts = finish_codes(&mut codes);
     apply(g, m, v, &codes, rule);
     counts
@@ -163,7 +169,7 @@ mod tests {
         let stats = Stats { grad_sum: vec![1.0, 1.0, 0.0, 0.0], seen: vec![1; 4], max_radius: vec![1.0; 4] };
         let cfg = DensifyConfig::default();
         let rule = Rule::new(&cfg, 10.0, true, false, None, 7);
-        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule);
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule, None);
         assert_eq!(c, Counts { cloned: 1, split: 1, pruned: 1 });
         // kept: 0 (clone source), 3, clone of 0, two halves of 1
         assert_eq!(g.len(), 5);
@@ -175,7 +181,7 @@ mod tests {
         // In a 1 m box, the split halves (scale 1.25) are too wide and are pruned.
         let stats = Stats { grad_sum: vec![0.0; 5], seen: vec![1; 5], max_radius: vec![1.0; 5] };
         let rule = Rule::new(&cfg, 10.0, true, false, Some([1.0; 3]), 7);
-        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule);
+        let c = densify_and_prune(&mut g, &mut m, &mut v, &stats, &rule, None);
         assert_eq!((c.pruned, g.len()), (2, 3));
     }
 }

@@ -38,11 +38,15 @@ pub struct Rule {
     pub max_world: f64,
     /// The actor's box (l, w, h), read when `has_box` is set.
     pub actor_box: [f64; 3],
+    /// How many sigmas of an actor's Gaussian must stay in its padded box (`DensifyConfig::actor_sigma`).
+    pub actor_sigma: f64,
     pub seed: u64,
     pub grow: i32,
     pub prune_big: i32,
     pub has_box: i32,
-    pub pad: i32,
+    /// Only the box rule prunes (nothing grows, transparent and large rows stay): the
+    /// containment steps after densification ends (`DensifyConfig::contain_to_end`).
+    pub box_only: i32,
 }
 
 impl Rule {
@@ -62,12 +66,18 @@ impl Rule {
             max_screen: cfg.max_screen_size,
             max_world: cfg.max_world_fraction * extent,
             actor_box: actor_box.unwrap_or([0.0; 3]),
+            actor_sigma: cfg.actor_sigma,
             seed,
             grow: grow as i32,
             prune_big: prune_big as i32,
             has_box: actor_box.is_some() as i32,
-            pad: 0,
+            box_only: 0,
         }
+    }
+
+    /// The containment rule of a set after densification (`Rule::box_only`).
+    pub fn containment(cfg: &DensifyConfig, extent: f64, actor_box: Option<[f64; 3]>, seed: u64) -> Rule {
+        Rule { box_only: 1, ..Rule::new(cfg, extent, false, false, actor_box, seed) }
     }
 }
 
@@ -111,16 +121,37 @@ pub fn split_child(
     (m, s.map(|v| (v / SPLIT_SHRINK).ln()))
 }
 
+/// Whether an actor's row reaches out of its box padded by 10 %: along each box axis `a`, its
+/// centre plus `sigma` times its extent along that axis (`sqrt(sum_k (R_ak s_k)^2)`, the
+/// standard deviation of the Gaussian's projection on the axis).
+pub fn leaves_box(b: [f64; 3], sigma: f64, mean: [f64; 3], log_scales: [f64; 3], q: [f64; 4]) -> bool {
+    let r = rotation(q);
+    let s = log_scales.map(f64::exp);
+    (0..3).any(|a| {
+        let e = ((r[a][0] * s[0]).powi(2) + (r[a][1] * s[1]).powi(2) + (r[a][2] * s[2]).powi(2)).sqrt();
+        mean[a].abs() + sigma * e > 0.55 * b[a]
+    })
+}
+
 /// Whether a row is pruned: nearly transparent, too big (after the first opacity reset; the
-/// screen size only for rows that existed while it was measured), or leaving its actor's box.
-pub fn pruned(rule: &Rule, logit: f64, mean: [f64; 3], log_scales: [f64; 3], old_radius: Option<f64>) -> bool {
+/// screen size only for rows that existed while it was measured), or leaving its actor's box
+/// (`leaves_box`); under `box_only`, only the last.
+pub fn pruned(
+    rule: &Rule,
+    logit: f64,
+    mean: [f64; 3],
+    log_scales: [f64; 3],
+    q: [f64; 4],
+    old_radius: Option<f64>,
+) -> bool {
+    let outside = rule.has_box != 0 && leaves_box(rule.actor_box, rule.actor_sigma, mean, log_scales, q);
+    if rule.box_only != 0 {
+        return outside;
+    }
     let ms = max_scale(log_scales);
     let transparent = 1.0 / (1.0 + (-logit).exp()) < rule.prune_opacity;
     let screen = old_radius.is_some_and(|r| rule.max_screen > 0.0 && r > rule.max_screen);
     let big = rule.prune_big != 0 && (screen || ms > rule.max_world);
-    let b = rule.actor_box;
-    let outside =
-        rule.has_box != 0 && ((0..3).any(|a| mean[a].abs() > 0.55 * b[a]) || ms > 0.5 * b[0].max(b[1]).max(b[2]));
     transparent || big || outside
 }
 
@@ -136,19 +167,19 @@ pub fn row_code(
     avg: f64,
     max_radius: f64,
 ) -> u8 {
-    let grows = rule.grow != 0 && avg >= rule.threshold;
+    let grows = rule.grow != 0 && rule.box_only == 0 && avg >= rule.threshold;
     if !grows {
-        return if pruned(rule, logit, mean, log_scales, Some(max_radius)) { 0 } else { KEEP };
+        return if pruned(rule, logit, mean, log_scales, q, Some(max_radius)) { 0 } else { KEEP };
     }
     if max_scale(log_scales) <= rule.clone_max_scale {
-        let keep = !pruned(rule, logit, mean, log_scales, Some(max_radius));
-        let child = !pruned(rule, logit, mean, log_scales, None);
+        let keep = !pruned(rule, logit, mean, log_scales, q, Some(max_radius));
+        let child = !pruned(rule, logit, mean, log_scales, q, None);
         return CLONED | if keep { KEEP } else { 0 } | if child { CLONE_KEPT } else { 0 };
     }
     let mut code = SPLIT;
     for (child, bit) in [(0, SPLIT0_KEPT), (1, SPLIT1_KEPT)] {
         let (m, s) = split_child(rule.seed, row, child, mean, log_scales, q);
-        if !pruned(rule, logit, m, s, None) {
+        if !pruned(rule, logit, m, s, q, None) {
             code |= bit;
         }
     }
@@ -219,5 +250,37 @@ mod tests {
         let c = finish_codes(&mut codes);
         assert_eq!(c, Counts { cloned: 1, split: 1, pruned: 1 + 2 + 2 });
         assert_eq!(codes, vec![KEEP, SPLIT | KEEP | SPLIT0_KEPT | SPLIT1_KEPT, CLONED | KEEP | CLONE_KEPT]);
+    }
+
+    #[test]
+    fn the_box_rule_reads_a_rows_extent_along_each_box_axis() {
+        // A 4 x 2 x 1.5 m box: padded half extents 2.2, 1.1, 0.825 m.
+        let b = [4.0, 2.0, 1.5];
+        let id = [1.0, 0.0, 0.0, 0.0];
+        let quarter = [std::f64::consts::FRAC_1_SQRT_2, 0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2];
+        let ls = |s: [f64; 3]| s.map(f64::ln);
+        // A roof Gaussian: flat and inside.
+        assert!(!leaves_box(b, 2.0, [0.0, 0.0, 0.7], ls([0.5, 0.3, 0.02]), id));
+        // 0.6 m across (1.2 m at 2 sigma) is wider than the box's half width...
+        assert!(leaves_box(b, 2.0, [0.0, 0.0, 0.0], ls([0.5, 0.6, 0.02]), id));
+        // ...but not turned a quarter about z, where it lies along the length.
+        assert!(!leaves_box(b, 2.0, [0.0, 0.0, 0.0], ls([0.5, 0.6, 0.02]), quarter));
+        // sigma 0: only the centre counts.
+        assert!(!leaves_box(b, 0.0, [2.1, 0.0, 0.0], ls([5.0; 3]), id));
+        assert!(leaves_box(b, 0.0, [2.3, 0.0, 0.0], ls([0.01; 3]), id));
+    }
+
+    #[test]
+    fn a_containment_rule_only_prunes_what_leaves_the_box() {
+        let cfg = DensifyConfig::default();
+        let actor = Rule::containment(&cfg, 10.0, Some([4.0, 2.0, 1.5]), 1);
+        let hot = 1.0;
+        let small = [(0.01f64).ln(); 3];
+        let id = [1.0, 0.0, 0.0, 0.0];
+        // Hot but never grown, transparent but kept, pruned only outside.
+        assert_eq!(row_code(&actor, 0, [0.0; 3], small, id, -20.0, hot, 1e6), KEEP);
+        assert_eq!(row_code(&actor, 0, [2.3, 0.0, 0.0], small, id, 2.0, hot, 0.0), 0);
+        let background = Rule::containment(&cfg, 10.0, None, 1);
+        assert_eq!(row_code(&background, 0, [1e3; 3], [3.0; 3], id, -20.0, hot, 1e6), KEEP);
     }
 }

@@ -8,6 +8,7 @@
 //! reference today). See docs/recon.md.
 
 pub mod ablate;
+pub mod actor_space;
 pub mod backend;
 pub mod backend_cuda;
 pub mod budget;

@@ -4,6 +4,7 @@
 //! schedule. Every random choice derives from `(seed, iteration)` and every reduction runs in a
 //! fixed order, so a resumed run reproduces an uninterrupted one exactly.
 
+use crate::actor_space::ActorSpace;
 use crate::backend::Backend;
 use crate::camera::pixel_ray;
 use crate::checkpoint::TrainState;
@@ -38,6 +39,8 @@ pub struct Trainer<'a, B: Backend> {
     pub backend: B,
     pub state: TrainState,
     pub extent: f64,
+    /// The background's no-go space (`actor_space`; empty when `clear_actor_space` is off).
+    pub space: ActorSpace,
     train_views: Vec<usize>,
     composed: Composed,
     img: Image,
@@ -66,6 +69,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
         extent: f64,
     ) -> Self {
         let train_views = train_views(views);
+        let space = actor_space_of(scene, &state, &cfg);
         Trainer {
             scene,
             views,
@@ -73,6 +77,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             backend,
             state,
             extent,
+            space,
             train_views,
             composed: Composed::default(),
             img: Image::default(),
@@ -186,7 +191,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
 
     /// Density control after 1-based iteration `n` (nothing when the schedule says so).
     pub fn density_control(&mut self, n: usize) -> Option<Counts> {
-        density_control(&mut self.state, &self.cfg, self.extent, n)
+        density_control(&mut self.state, &self.cfg, self.extent, n, &self.space)
     }
 }
 
@@ -226,7 +231,17 @@ pub(crate) fn density_step(
     let d = &cfg.densify;
     let (from, until, reset) = cfg.densify_schedule();
     if n >= until {
-        return DensityStep { rules: None, reset: false, reset_actors: false };
+        // Containment: the box rule alone, for as long as the actors keep training.
+        let boxes: Vec<[f64; 3]> = actor_boxes.collect();
+        let contain = d.contain_to_end && !boxes.is_empty() && n < cfg.iterations && n.is_multiple_of(d.interval);
+        let rules = contain.then(|| {
+            std::iter::once(None)
+                .chain(boxes.into_iter().map(Some))
+                .enumerate()
+                .map(|(i, b)| Rule::containment(d, extent, b, derive_seed(cfg.seed, 2, (n * 1000 + i) as u64)))
+                .collect()
+        });
+        return DensityStep { rules, reset: false, reset_actors: false };
     }
     let rules = (n > from && n.is_multiple_of(d.interval)).then(|| {
         let (grow, prune_big) = (rows < d.max_gaussians, reset > 0 && n > reset);
@@ -240,7 +255,27 @@ pub(crate) fn density_step(
 }
 
 /// The 3DGS schedule on 1-based iteration `n`.
-pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent: f64, n: usize) -> Option<Counts> {
+/// The space the background is kept out of (`DensifyConfig::clear_actor_space`).
+pub(crate) fn actor_space_of(scene: &Scene, state: &TrainState, cfg: &TrainConfig) -> ActorSpace {
+    if !cfg.densify.clear_actor_space {
+        return ActorSpace::default();
+    }
+    let space = ActorSpace::of(scene, &state.model);
+    tracing::info!(
+        voxels = space.voxels,
+        voxel_m = space.grid.voxel,
+        "the actors' space, kept clear of the background"
+    );
+    space
+}
+
+pub(crate) fn density_control(
+    state: &mut TrainState,
+    cfg: &TrainConfig,
+    extent: f64,
+    n: usize,
+    space: &ActorSpace,
+) -> Option<Counts> {
     let boxes = state.model.actors.iter().map(|a| a.size_lwh);
     let step = density_step(cfg, extent, n, state.model.gaussian_count(), boxes);
     let st = &mut *state;
@@ -248,7 +283,8 @@ pub(crate) fn density_control(state: &mut TrainState, cfg: &TrainConfig, extent:
         let mut total = Counts::default();
         let sets: Vec<&mut Gaussians> = st.model.sets_mut().collect();
         for (i, (g, rule)) in sets.into_iter().zip(&rules).enumerate() {
-            total.add(densify_and_prune(g, &mut st.adam.m[i], &mut st.adam.v[i], &st.stats[i], rule));
+            let space = (i == 0).then_some(space);
+            total.add(densify_and_prune(g, &mut st.adam.m[i], &mut st.adam.v[i], &st.stats[i], rule, space));
         }
         for (s, g) in st.stats.iter_mut().zip(st.model.sets()) {
             s.grad_sum.clear();
@@ -297,16 +333,48 @@ mod tests {
         let (_, _, every) = cfg.densify_schedule();
         let cap = crate::densify::reset_logit_cap();
         let mut st = state();
-        density_control(&mut st, &cfg, 10.0, every);
+        density_control(&mut st, &cfg, 10.0, every, &ActorSpace::default());
         assert!((st.model.background.opacity_logits[0] - cap).abs() < 1e-12 && st.adam.m[0].opacity_logits[0] == 0.0);
         assert_eq!(st.model.actors[0].gaussians.opacity_logits[0], 2.0, "the actor keeps its opacity");
         assert_eq!(st.adam.m[1].opacity_logits[0], 1.0, "and its moments");
         cfg.densify.reset_actors = true;
         let mut st = state();
-        density_control(&mut st, &cfg, 10.0, every);
+        density_control(&mut st, &cfg, 10.0, every, &ActorSpace::default());
         assert!(
             (st.model.actors[0].gaussians.opacity_logits[0] - cap).abs() < 1e-12
                 && st.adam.m[1].opacity_logits[0] == 0.0
         );
+    }
+
+    #[test]
+    fn after_densification_the_box_rule_alone_keeps_the_actors_in_their_boxes() {
+        let cfg = TrainConfig { iterations: 1000, ..Default::default() };
+        let (_, until, _) = cfg.densify_schedule();
+        let n = until + cfg.densify.interval - until % cfg.densify.interval;
+        let mut st = state();
+        // An actor row 1.9 m along a 4 m box (padded half length 2.2 m) and 0.2 m wide: its
+        // 2-sigma extent reaches 2.3 m. A transparent background row stays.
+        st.model.background.opacity_logits[0] = -10.0;
+        st.model.actors[0].gaussians.means.push([1.9, 0.0, 0.0]);
+        st.model.actors[0].gaussians.log_scales.push([(0.2f64).ln(); 3]);
+        st.model.actors[0].gaussians.rotations.push([1.0, 0.0, 0.0, 0.0]);
+        st.model.actors[0].gaussians.opacity_logits.push(2.0);
+        st.model.actors[0].gaussians.sh.push(0.0);
+        st.adam = crate::optim::AdamState::new(&st.model);
+        st.stats.iter_mut().zip(st.model.sets()).for_each(|(s, g)| s.fit(g.len()));
+        assert!(
+            density_control(&mut st, &cfg, 10.0, n - 1, &ActorSpace::default()).is_none(),
+            "only on interval multiples"
+        );
+        let c = density_control(&mut st, &cfg, 10.0, n, &ActorSpace::default()).expect("a containment step");
+        assert_eq!((c.pruned, c.cloned, c.split), (1, 0, 0));
+        assert_eq!(st.model.actors[0].gaussians.len(), 1);
+        assert_eq!(st.model.background.len(), 1, "the box rule alone: transparent rows stay");
+        let off = TrainConfig {
+            densify: crate::config::DensifyConfig { contain_to_end: false, ..cfg.densify.clone() },
+            ..cfg.clone()
+        };
+        assert!(density_step(&off, 10.0, n, 2, [[4.0, 2.0, 1.5]].into_iter()).rules.is_none());
+        assert!(density_step(&cfg, 10.0, n, 2, std::iter::empty()).rules.is_none(), "no actors, nothing to contain");
     }
 }

@@ -272,13 +272,24 @@ fn device_density_control_matches_the_host() {
         set.sh.iter_mut().for_each(|v| *v = rng.random_range(0.0f32..1.0) as f64);
         set.opacity_logits.iter_mut().for_each(|v| *v = rng.random_range(0.0f32..1.0) as f64);
     }
+    // Background rows inside a tracked object's box: the actors' space prunes them on both sides.
+    let space = recon::actor_space::ActorSpace::of(&scene, &st.model);
+    let largest = st.model.actors.iter().max_by(|a, b| a.size_lwh[0].total_cmp(&b.size_lwh[0])).unwrap();
+    let inside = scene.track(&largest.track_id).and_then(|t| t.valid_states().next()).unwrap().center;
+    let moved: Vec<[f64; 3]> = (0..16)
+        .map(|i| [(inside.x + 0.02 * i as f64) as f32 as f64, inside.y as f32 as f64, inside.z as f32 as f64])
+        .collect();
+    st.model.background.means[..16].copy_from_slice(&moved);
+    assert!(moved.iter().all(|m| space.contains(*m)), "the moved rows are in the space");
     let densify_at = (reset + 1..until).find(|n| n % cfg.densify.interval == 0 && n % reset != 0).unwrap();
     let reset_at = (densify_at + 1..until).find(|n| n % reset == 0 && n % cfg.densify.interval != 0).unwrap();
+    // After `until`: the box rule alone (`contain_to_end`).
+    let contain_at = (until..cfg.iterations).find(|n| n % cfg.densify.interval == 0).unwrap();
     let mut host_backend = Cuda::new().unwrap();
     host_backend.host_training = true;
     let mut host = Trainer::new(&scene, &views, cfg.clone(), host_backend, state0.clone(), extent);
     let mut dev = DeviceTrainer::new(&scene, &views, cfg.clone(), gpu, state0.clone(), extent).unwrap();
-    for n in [densify_at, reset_at] {
+    for n in [densify_at, reset_at, contain_at] {
         let hc = host.density_control(n);
         let dc = dev.density_control(n).unwrap();
         println!("after iteration {n}: host {hc:?}, device {dc:?}, rows {}", host.state.model.gaussian_count());
@@ -286,6 +297,14 @@ fn device_density_control_matches_the_host() {
         if n == densify_at {
             let c = hc.expect("density control ran");
             assert!(c.cloned > 0 && c.split > 0 && c.pruned > 0, "the step clones, splits and prunes: {c:?}");
+            // The rows that were in the space are gone (a split child of a row outside may land in
+            // it; the next step takes it).
+            let left = host.state.model.background.means.iter().filter(|m| moved.contains(m)).count();
+            assert_eq!(left, 0, "the actors' space is cleared");
+        }
+        if n == contain_at {
+            let c = hc.expect("containment ran");
+            assert!(c.cloned == 0 && c.split == 0, "containment only prunes: {c:?}");
         }
         let d = dev.sync_host().unwrap().clone();
         let h = &host.state;

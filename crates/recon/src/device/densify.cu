@@ -16,8 +16,9 @@
 struct Rule {
     double threshold, clone_max_scale, prune_opacity, max_screen, max_world;
     double actor_box[3];
+    double actor_sigma;
     unsigned long long seed;
-    int grow, prune_big, has_box, pad;
+    int grow, prune_big, has_box, box_only;
 };
 
 __device__ unsigned long long mix64(unsigned long long z) {
@@ -39,8 +40,8 @@ __device__ double split_normal(unsigned long long seed, unsigned long long row, 
 
 __device__ double max_scale(const double* ls) { return exp(fmax(fmax(ls[0], ls[1]), ls[2])); }
 
-__device__ void split_child(const Rule& rule, unsigned long long row, int child, const double* mean,
-                            const double* ls, const double* q4, double* m_out, double* ls_out) {
+// splat::project::rotation: the rotation of a quaternion (w, x, y, z), normalised (identity if zero).
+__device__ void rotation(const double* q4, double r[3][3]) {
     double w = q4[0], x = q4[1], y = q4[2], z = q4[3];
     double nq = sqrt(w * w + x * x + y * y + z * z);
     if (nq > 0.0) {
@@ -48,9 +49,15 @@ __device__ void split_child(const Rule& rule, unsigned long long row, int child,
     } else {
         w = 1.0; x = 0.0; y = 0.0; z = 0.0;
     }
-    double r[3][3] = {{1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)},
-                      {2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)},
-                      {2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)}};
+    r[0][0] = 1.0 - 2.0 * (y * y + z * z); r[0][1] = 2.0 * (x * y - w * z); r[0][2] = 2.0 * (x * z + w * y);
+    r[1][0] = 2.0 * (x * y + w * z); r[1][1] = 1.0 - 2.0 * (x * x + z * z); r[1][2] = 2.0 * (y * z - w * x);
+    r[2][0] = 2.0 * (x * z - w * y); r[2][1] = 2.0 * (y * z + w * x); r[2][2] = 1.0 - 2.0 * (x * x + y * y);
+}
+
+__device__ void split_child(const Rule& rule, unsigned long long row, int child, const double* mean,
+                            const double* ls, const double* q4, double* m_out, double* ls_out) {
+    double r[3][3];
+    rotation(q4, r);
     double s[3], local[3];
     for (int a = 0; a < 3; a++) {
         s[a] = exp(ls[a]);
@@ -62,16 +69,28 @@ __device__ void split_child(const Rule& rule, unsigned long long row, int child,
     }
 }
 
+// densify_rule::leaves_box: the row's `sigma`-sigma extent along a box axis leaves the padded box.
+__device__ bool leaves_box(const double* b, double sigma, const double* mean, const double* ls, const double* q4) {
+    double r[3][3];
+    rotation(q4, r);
+    double s[3] = {exp(ls[0]), exp(ls[1]), exp(ls[2])};
+    for (int a = 0; a < 3; a++) {
+        double e = sqrt((r[a][0] * s[0]) * (r[a][0] * s[0]) + (r[a][1] * s[1]) * (r[a][1] * s[1]) +
+                        (r[a][2] * s[2]) * (r[a][2] * s[2]));
+        if (fabs(mean[a]) + sigma * e > 0.55 * b[a]) return true;
+    }
+    return false;
+}
+
 // old_radius < 0: the row did not exist while the screen size was measured.
-__device__ bool pruned(const Rule& rule, double logit, const double* mean, const double* ls, double old_radius) {
+__device__ bool pruned(const Rule& rule, double logit, const double* mean, const double* ls, const double* q4,
+                       double old_radius) {
+    bool outside = rule.has_box != 0 && leaves_box(rule.actor_box, rule.actor_sigma, mean, ls, q4);
+    if (rule.box_only != 0) return outside;
     double ms = max_scale(ls);
     bool transparent = 1.0 / (1.0 + exp(-logit)) < rule.prune_opacity;
     bool screen = old_radius >= 0.0 && rule.max_screen > 0.0 && old_radius > rule.max_screen;
     bool big = rule.prune_big != 0 && (screen || ms > rule.max_world);
-    const double* b = rule.actor_box;
-    bool outside = rule.has_box != 0 &&
-                   (fabs(mean[0]) > 0.55 * b[0] || fabs(mean[1]) > 0.55 * b[1] || fabs(mean[2]) > 0.55 * b[2] ||
-                    ms > 0.5 * fmax(fmax(b[0], b[1]), b[2]));
     return transparent || big || outside;
 }
 
@@ -96,19 +115,42 @@ extern "C" __global__ void densify_plan(int n, int src0, Rule rule, const float*
     double logit = logits[r], radius = max_radius[r];
     double avg = seen[r] > 0 ? (double)grad_sum[r] / (double)seen[r] : 0.0;
     unsigned char code;
-    if (!(rule.grow != 0 && avg >= rule.threshold)) {
-        code = pruned(rule, logit, m, ls, radius) ? 0 : KEEP;
+    if (!(rule.grow != 0 && rule.box_only == 0 && avg >= rule.threshold)) {
+        code = pruned(rule, logit, m, ls, q, radius) ? 0 : KEEP;
     } else if (max_scale(ls) <= rule.clone_max_scale) {
-        code = CLONED | (pruned(rule, logit, m, ls, radius) ? 0 : KEEP) | (pruned(rule, logit, m, ls, -1.0) ? 0 : CLONE_KEPT);
+        code = CLONED | (pruned(rule, logit, m, ls, q, radius) ? 0 : KEEP) | (pruned(rule, logit, m, ls, q, -1.0) ? 0 : CLONE_KEPT);
     } else {
         code = SPLIT;
         for (int child = 0; child < 2; child++) {
             double cm[3], cls[3];
             split_child(rule, (unsigned long long)i, child, m, ls, q, cm, cls);
-            if (!pruned(rule, logit, cm, cls, -1.0)) code |= (child == 0 ? SPLIT0_KEPT : SPLIT1_KEPT);
+            if (!pruned(rule, logit, cm, cls, q, -1.0)) code |= (child == 0 ? SPLIT0_KEPT : SPLIT1_KEPT);
         }
     }
     codes[r] = code;
+}
+
+// actor_space::ActorSpace::contains and prune_codes: a background row whose centre is in a marked
+// voxel is pruned with any children (code 0). The same f64 arithmetic as the host.
+struct Space {
+    double origin[3];
+    double voxel;
+    int dims[3], pad;
+};
+
+extern "C" __global__ void space_prune(int n, int src0, Space sp, const unsigned* bits, const float* means,
+                                       unsigned char* codes) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    int r = src0 + i;
+    long long k[3];
+    for (int a = 0; a < 3; a++) {
+        double t = floor(((double)means[3 * r + a] - sp.origin[a]) / sp.voxel);
+        if (!(t >= 0.0 && t < (double)sp.dims[a])) return;
+        k[a] = (long long)t;
+    }
+    long long f = (k[0] * sp.dims[1] + k[1]) * sp.dims[2] + k[2];
+    if ((bits[f >> 5] >> (f & 31)) & 1u) codes[r] = 0;
 }
 
 __device__ int kept_children(unsigned char c) {

@@ -8,6 +8,7 @@
 
 use super::kernels::{linear, Kernels};
 use super::model::{DeviceModel, Params};
+use crate::actor_space::SpaceGrid;
 use crate::densify_rule::{finish_codes, kept_children, Counts, KEEP};
 use crate::train::DensityStep;
 use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, PushKernelArg};
@@ -19,9 +20,10 @@ pub(crate) fn control(
     s: &Arc<CudaStream>,
     dm: &mut DeviceModel,
     step: &DensityStep,
+    space: Option<(&SpaceGrid, &CudaSlice<u32>)>,
 ) -> Result<Option<Counts>, DriverError> {
     let counts = match &step.rules {
-        Some(rules) => Some(densify(k, s, dm, rules)?),
+        Some(rules) => Some(densify(k, s, dm, rules, space)?),
         None => None,
     };
     if step.reset {
@@ -78,6 +80,7 @@ fn densify(
     s: &Arc<CudaStream>,
     dm: &mut DeviceModel,
     rules: &[crate::densify_rule::Rule],
+    space: Option<(&SpaceGrid, &CudaSlice<u32>)>,
 ) -> Result<Counts, DriverError> {
     let n = dm.rows();
     let mut codes_d = s.alloc_zeros::<u8>(n.max(1))?;
@@ -102,6 +105,20 @@ fn densify(
                 .arg(&dm.max_radius)
                 .arg(&mut codes_d)
                 .launch(linear(rows))?;
+        }
+        // The background (set 0) is kept out of the actors' space (`actor_space`).
+        if let (0, Some((grid, bits))) = (set, space) {
+            // SAFETY: means holds the model's rows, bits the grid's voxels, codes n bytes.
+            unsafe {
+                s.launch_builder(&k.space_prune)
+                    .arg(&(rows as i32))
+                    .arg(&(a as i32))
+                    .arg(grid)
+                    .arg(bits)
+                    .arg(&p.means)
+                    .arg(&mut codes_d)
+                    .launch(linear(rows))?;
+            }
         }
     }
     let mut codes = vec![0u8; n];

@@ -25,6 +25,7 @@ pub(crate) struct Kernels {
     pub normal_finish: CudaFunction,
     pub adam: CudaFunction,
     pub densify_plan: CudaFunction,
+    pub space_prune: CudaFunction,
     pub densify_copy: CudaFunction,
     pub densify_split: CudaFunction,
     pub opacity_cap: CudaFunction,
@@ -55,6 +56,7 @@ impl Kernels {
             normal_finish: f("normal_finish")?,
             adam: f("adam")?,
             densify_plan: fd("densify_plan")?,
+            space_prune: fd("space_prune")?,
             densify_copy: fd("densify_copy")?,
             densify_split: fd("densify_split")?,
             opacity_cap: fd("opacity_cap")?,
@@ -160,6 +162,8 @@ impl Win {
 
 // SAFETY: `densify_rule::Rule` is plain #[repr(C)] data matching densify.cu's `Rule`.
 unsafe impl DeviceRepr for crate::densify_rule::Rule {}
+// SAFETY: `actor_space::SpaceGrid` is plain #[repr(C)] data matching densify.cu's `Space`.
+unsafe impl DeviceRepr for crate::actor_space::SpaceGrid {}
 
 #[cfg(test)]
 mod tests {

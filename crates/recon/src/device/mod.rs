@@ -57,6 +57,8 @@ pub struct DeviceTrainer<'a> {
     train_views: Vec<usize>,
     /// Seconds spent in density control (clone, split, prune) and how often.
     density_time: (f64, usize),
+    /// The background's no-go space (`actor_space`): its grid and bits on the device.
+    space: Option<(crate::actor_space::SpaceGrid, CudaSlice<u32>)>,
 }
 
 fn dev(e: DriverError) -> ReconError {
@@ -86,6 +88,11 @@ impl<'a> DeviceTrainer<'a> {
             .collect::<Result<_, _>>()?;
         let scratch = loss::Scratch::new(&s).map_err(dev)?;
         let segs = compose::Segments::new(&s).map_err(dev)?;
+        let space = crate::train::actor_space_of(scene, &state, &cfg);
+        let space = match space.voxels {
+            0 => None,
+            _ => Some((space.grid, s.clone_htod(&space.bits).map_err(dev)?)),
+        };
         Ok(DeviceTrainer {
             scene,
             views,
@@ -102,6 +109,7 @@ impl<'a> DeviceTrainer<'a> {
             scratch,
             segs,
             density_time: (0.0, 0),
+            space,
         })
     }
 
@@ -189,7 +197,8 @@ impl<'a> DeviceTrainer<'a> {
         }
         let s = self.gpu.stream().clone();
         let t0 = std::time::Instant::now();
-        let c = densify::control(&self.k, &s, &mut self.dm, &ds).map_err(dev)?;
+        let space = self.space.as_ref().map(|(g, b)| (g, b));
+        let c = densify::control(&self.k, &s, &mut self.dm, &ds, space).map_err(dev)?;
         self.host_current = false;
         if ds.rules.is_some() {
             s.synchronize().map_err(dev)?;
