@@ -80,7 +80,7 @@ mod tests {
         let cpu = config(Path::new("x"), false).unwrap();
         assert_eq!((cpu.train.scale, cpu.train.iterations, cpu.render.scale), (CPU_SCALE, 1500, CPU_SCALE));
         let gpu = config(Path::new("x"), true).unwrap();
-        assert_eq!((gpu.train.scale, gpu.train.iterations), (1.0, 14000));
+        assert_eq!((gpu.train.scale, gpu.train.iterations), (1.0, 15000));
         assert_eq!(gpu.train.densify.max_gaussians, 1_200_000);
         assert!(gpu.replace.is_empty() && gpu.input.as_deref() == Some(Path::new("x")));
     }

@@ -152,7 +152,7 @@ impl Default for DensifyConfig {
             percent_dense: 0.01,
             opacity_reset_every: 0.1,
             reset_actors: false,
-            actor_sigma: 2.0,
+            actor_sigma: 1.0,
             contain_to_end: true,
             clear_actor_space: true,
             prune_opacity: 0.005,

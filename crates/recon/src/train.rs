@@ -352,10 +352,11 @@ mod tests {
         let (_, until, _) = cfg.densify_schedule();
         let n = until + cfg.densify.interval - until % cfg.densify.interval;
         let mut st = state();
-        // An actor row 1.9 m along a 4 m box (padded half length 2.2 m) and 0.2 m wide: its
-        // 2-sigma extent reaches 2.3 m. A transparent background row stays.
+        // An actor row 2.1 m along a 4 m box (padded half length 2.2 m) and 0.2 m wide: its
+        // 1-sigma extent (the default `actor_sigma`) reaches 2.3 m. A transparent background row stays.
+        assert_eq!(cfg.densify.actor_sigma, 1.0);
         st.model.background.opacity_logits[0] = -10.0;
-        st.model.actors[0].gaussians.means.push([1.9, 0.0, 0.0]);
+        st.model.actors[0].gaussians.means.push([2.1, 0.0, 0.0]);
         st.model.actors[0].gaussians.log_scales.push([(0.2f64).ln(); 3]);
         st.model.actors[0].gaussians.rotations.push([1.0, 0.0, 0.0, 0.0]);
         st.model.actors[0].gaussians.opacity_logits.push(2.0);
