@@ -12,7 +12,7 @@
 //! A voxel belongs to the space when its centre lies inside some logged state's box shrunk by half
 //! the voxel's diagonal (above the floor band), so every point of a marked voxel is inside that box:
 //! the set never reaches outside a box. The grid covers the boxes' bounds; its voxel grows from
-//! [`VOXEL_M`] until it fits [`MAX_VOXELS`]. The device reads the same bits (`densify.cu`,
+//! [`VOXEL_M`] until it fits [`MAX_VOXELS`] and the boxes' voxel tests fit [`MAX_TESTS`]. The device reads the same bits (`densify.cu`,
 //! `space_prune`) with the same f64 arithmetic.
 
 use crate::init::ACTOR_FLOOR_M;
@@ -23,8 +23,11 @@ use scene::Scene;
 
 /// The finest voxel edge (m).
 pub const VOXEL_M: f64 = 0.2;
-/// Most voxels the grid may have (16 MiB of bits).
+/// Most voxels the grid may have (16 MiB of bits)...
 pub const MAX_VOXELS: u64 = 1 << 27;
+/// ...and most voxel tests over all boxes (a second or two): a log of many huge boxes coarsens
+/// the voxel instead of running for minutes.
+pub const MAX_TESTS: f64 = (1u64 << 28) as f64;
 
 /// The grid's placement, as the device takes it (`#[repr(C)]` twin of `densify.cu`'s `Space`).
 #[repr(C)]
@@ -68,10 +71,14 @@ impl ActorSpace {
             .filter(|(c, h, s)| c.is_finite() && h.is_finite() && s.iter().all(|v| v.is_finite() && *v > 0.0))
             .collect();
         let Some((lo, hi)) = bounds(&boxes) else { return ActorSpace::default() };
+        let tests = |voxel: f64| -> f64 {
+            let span = |(a, b): (DVec3, DVec3)| ((b - a) / voxel + 1.0).ceil();
+            boxes.iter().map(|(c, h, s)| span(box_bounds(*c, *h, *s))).map(|d| d.x * d.y * d.z).sum()
+        };
         let mut voxel = VOXEL_M;
         let dims = loop {
             let d = ((hi - lo) / voxel).ceil().max(DVec3::ONE);
-            if d.x * d.y * d.z <= MAX_VOXELS as f64 {
+            if d.x * d.y * d.z <= MAX_VOXELS as f64 && tests(voxel) <= MAX_TESTS {
                 break [d.x as i32, d.y as i32, d.z as i32];
             }
             voxel *= 2.0;

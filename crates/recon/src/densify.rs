@@ -5,8 +5,10 @@
 //! reset to at most 0.01 at intervals. New rows get zero optimiser moments. The gradient is
 //! converted from pixels to normalised device units (`x 0.5 max(W, H)`, as gsplat does) so the
 //! 3DGS threshold (2e-4) keeps its meaning at any image size. An actor's Gaussians must stay in
-//! its box: those whose centre leaves the box (padded by 10 %) or that grow wider than half the
-//! box are pruned, so a car's model cannot smear into the street it drives through.
+//! its box: those whose `actor_sigma`-sigma extent leaves the box (padded by 10 %) along any of
+//! its axes are pruned (`densify_rule::leaves_box`), so a car's model cannot smear into the street
+//! it drives through; the background's Gaussians in the space the tracked objects take
+//! (`actor_space`) are pruned too.
 
 use crate::actor_space::ActorSpace;
 use crate::densify_rule::{finish_codes, row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};

@@ -74,3 +74,13 @@ fn a_huge_extent_coarsens_the_voxel_to_fit_the_budget() {
     assert!(n <= MAX_VOXELS && s.grid.voxel > VOXEL_M, "{n} voxels of {} m", s.grid.voxel);
     assert!(s.bits.len() as u64 * 32 >= n);
 }
+
+#[test]
+fn many_huge_boxes_coarsen_the_voxel_to_fit_the_work_budget() {
+    // 2,000 boxes of 60 m sides (the largest a PandaSet cuboid may be) over one place: 27M voxel
+    // tests each at 0.2 m.
+    let huge: Vec<_> = (0..2000).map(|i| (DVec3::new(0.0, 0.0, 30.0), i as f64 * 1e-3, [60.0; 3])).collect();
+    let s = ActorSpace::from_boxes(&huge);
+    assert!(s.grid.voxel >= 4.0 * VOXEL_M, "{} m", s.grid.voxel);
+    assert!(s.contains([0.0, 0.0, 30.0]));
+}
