@@ -232,11 +232,12 @@ pub(crate) fn density_step(
     let (from, until, reset) = cfg.densify_schedule();
     if n >= until {
         // Containment: the box rule alone, for as long as the actors keep training.
-        let boxes: Vec<[f64; 3]> = actor_boxes.collect();
-        let contain = d.contain_to_end && !boxes.is_empty() && n < cfg.iterations && n.is_multiple_of(d.interval);
-        let rules = contain.then(|| {
+        // Only on the steps that are due does the model's box list get read.
+        let due = d.contain_to_end && n < cfg.iterations && n.is_multiple_of(d.interval);
+        let mut boxes = actor_boxes.peekable();
+        let rules = (due && boxes.peek().is_some()).then(|| {
             std::iter::once(None)
-                .chain(boxes.into_iter().map(Some))
+                .chain(boxes.map(Some))
                 .enumerate()
                 .map(|(i, b)| Rule::containment(d, extent, b, derive_seed(cfg.seed, 2, (n * 1000 + i) as u64)))
                 .collect()
