@@ -121,48 +121,92 @@ pub fn compose_into(
 /// Adds the world-frame gradients `gw` of a composed scene to per-model gradients `grads`
 /// (background first, then actors: the order of `SceneModel::sets`), each shaped like its model.
 pub fn scatter_gradients(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians]) {
+    for (pi, part) in composed.parts.iter().enumerate() {
+        for j in 0..part.len {
+            scatter_row(composed, pi, j, gw, grads);
+        }
+    }
+}
+
+/// [`scatter_gradients`] for the world rows `world_rows` only: the same sums where every other
+/// row's world gradient is zero (a Gaussian the view did not draw has none), without visiting the
+/// rest of the scene.
+pub fn scatter_rows(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians], world_rows: &[usize]) {
+    for &wi in world_rows {
+        if let Some((pi, j)) = composed.owner(wi) {
+            scatter_row(composed, pi, j, gw, grads);
+        }
+    }
+}
+
+impl Composed {
+    /// The part holding world row `wi` and the row's index in that part.
+    pub fn owner(&self, wi: usize) -> Option<(usize, usize)> {
+        let pi = self.parts.partition_point(|p| p.start + p.len <= wi);
+        let p = self.parts.get(pi)?;
+        (wi >= p.start && wi < p.start + p.len).then(|| (pi, wi - p.start))
+    }
+
+    /// The set (0 the background, `a + 1` actor `a`) and row of world row `wi`.
+    pub fn set_row(&self, wi: usize) -> Option<(usize, usize)> {
+        self.owner(wi).map(|(pi, j)| (self.parts[pi].actor.map_or(0, |a| a + 1), j))
+    }
+}
+
+/// Row `j` of part `pi`: world gradients back to its model's frame, added to `grads`.
+fn scatter_row(composed: &Composed, pi: usize, j: usize, gw: &Gradients, grads: &mut [Gaussians]) {
+    let part = &composed.parts[pi];
     let active = composed.world.sh_degree;
     let k = sh_coeffs(active) * 3;
-    for part in &composed.parts {
-        let dst = &mut grads[part.actor.map_or(0, |a| a + 1)];
-        let kd = dst.coeffs() * 3;
-        for j in 0..part.len {
-            let (i, wi) = (j, part.start + j);
-            let gsh = &gw.sh[wi * k..(wi + 1) * k];
-            let dsh = &mut dst.sh[i * kd..(i + 1) * kd];
+    let dst = &mut grads[part.actor.map_or(0, |a| a + 1)];
+    let kd = dst.coeffs() * 3;
+    let (i, wi) = (j, part.start + j);
+    let gsh = &gw.sh[wi * k..(wi + 1) * k];
+    let dsh = &mut dst.sh[i * kd..(i + 1) * kd];
+    for a in 0..3 {
+        dst.log_scales[i][a] += gw.log_scales[wi][a];
+    }
+    dst.opacity_logits[i] += gw.opacity_logits[wi];
+    match &part.pose {
+        None => {
             for a in 0..3 {
-                dst.log_scales[i][a] += gw.log_scales[wi][a];
+                dst.means[i][a] += gw.means[wi][a];
             }
-            dst.opacity_logits[i] += gw.opacity_logits[wi];
-            match &part.pose {
-                None => {
-                    for a in 0..3 {
-                        dst.means[i][a] += gw.means[wi][a];
-                    }
-                    for a in 0..4 {
-                        dst.rotations[i][a] += gw.rotations[wi][a];
-                    }
-                    for (d, g) in dsh.iter_mut().zip(gsh) {
-                        *d += g;
-                    }
-                }
-                Some((pose, rot)) => {
-                    let r = yaw_rotation(pose.heading);
-                    let gm = gw.means[wi];
-                    for a in 0..3 {
-                        dst.means[i][a] += (0..3).map(|b| r[b][a] * gm[b]).sum::<f64>();
-                    }
-                    let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
-                    let [gw_, gx, gy, gz] = gw.rotations[wi];
-                    let q = &mut dst.rotations[i];
-                    q[0] += c * gw_ + s * gz;
-                    q[1] += c * gx + s * gy;
-                    q[2] += -s * gx + c * gy;
-                    q[3] += -s * gw_ + c * gz;
-                    rot.grad_to_local(gsh, dsh, active);
-                }
+            for a in 0..4 {
+                dst.rotations[i][a] += gw.rotations[wi][a];
+            }
+            for (d, g) in dsh.iter_mut().zip(gsh) {
+                *d += g;
             }
         }
+        Some((pose, rot)) => {
+            let r = yaw_rotation(pose.heading);
+            let gm = gw.means[wi];
+            for a in 0..3 {
+                dst.means[i][a] += (0..3).map(|b| r[b][a] * gm[b]).sum::<f64>();
+            }
+            let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
+            let [gw_, gx, gy, gz] = gw.rotations[wi];
+            let q = &mut dst.rotations[i];
+            q[0] += c * gw_ + s * gz;
+            q[1] += c * gx + s * gy;
+            q[2] += -s * gx + c * gy;
+            q[3] += -s * gw_ + c * gz;
+            rot.grad_to_local(gsh, dsh, active);
+        }
+    }
+}
+
+/// Zeroes rows `rows` (set, row) of per-model gradient buffers already shaped like the model.
+pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)]) {
+    for &(set, i) in rows {
+        let g = &mut grads[set];
+        let kd = g.coeffs() * 3;
+        g.means[i] = [0.0; 3];
+        g.log_scales[i] = [0.0; 3];
+        g.rotations[i] = [0.0; 4];
+        g.opacity_logits[i] = 0.0;
+        g.sh[i * kd..(i + 1) * kd].fill(0.0);
     }
 }
 

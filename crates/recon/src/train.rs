@@ -8,7 +8,7 @@ use crate::actor_space::ActorSpace;
 use crate::backend::Backend;
 use crate::camera::pixel_ray;
 use crate::checkpoint::TrainState;
-use crate::compose::{compose_into, reset_gradients, scatter_gradients, Composed, Layers};
+use crate::compose::{compose_into, reset_gradients, scatter_rows, zero_rows, Composed, Layers};
 use crate::config::TrainConfig;
 use crate::data::View;
 use crate::densify::{densify_and_prune, reset_opacity, Counts, Rule, Stats};
@@ -49,6 +49,9 @@ pub struct Trainer<'a, B: Backend> {
     grads: Vec<Gaussians>,
     cgrads: ChannelGrads,
     sky_grad: Vec<f64>,
+    /// The (set, row)s the last step scattered gradients to: the only rows of `grads` that can be
+    /// non-zero (`None` after density control, which moves rows: then every row is zeroed).
+    touched: Option<Vec<(usize, usize)>>,
 }
 
 /// Seed for a purpose at an iteration (splitmix-style mixing).
@@ -86,6 +89,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             grads: Vec::new(),
             cgrads: ChannelGrads::default(),
             sky_grad: Vec::new(),
+            touched: None,
         }
     }
 
@@ -140,22 +144,33 @@ impl<'a, B: Backend> Trainer<'a, B> {
             features: &[],
         };
         self.backend.backward(&self.composed.world, &view.cam, &opts, &self.ctx, &up, &mut self.wgrads);
-        reset_gradients(&self.state.model, &mut self.grads);
-        scatter_gradients(&self.composed, &self.wgrads, &mut self.grads);
+        // Only the Gaussians the view drew have gradients: zero the rows the last step wrote,
+        // then scatter these.
+        let mut drawn = Vec::new();
+        self.backend.for_each_drawn(&self.ctx, &mut |i, r| drawn.push((i, r)));
+        let composed = &self.composed;
+        // (world row, half extent, set, row in the set) of every drawn Gaussian.
+        let drawn: Vec<_> =
+            drawn.iter().filter_map(|&(wi, r)| composed.set_row(wi).map(|(s, i)| (wi, r, s, i))).collect();
+        let shaped = self.grads.len() == self.state.model.actors.len() + 1
+            && self
+                .grads
+                .iter()
+                .zip(self.state.model.sets())
+                .all(|(g, m)| g.len() == m.len() && g.sh_degree == m.sh_degree);
+        match self.touched.take() {
+            Some(rows) if shaped => zero_rows(&mut self.grads, &rows),
+            _ => reset_gradients(&self.state.model, &mut self.grads),
+        }
+        let world_rows: Vec<usize> = drawn.iter().map(|d| d.0).collect();
+        let rows: Vec<(usize, usize)> = drawn.iter().map(|d| (d.2, d.3)).collect();
+        scatter_rows(&self.composed, &self.wgrads, &mut self.grads, &world_rows);
         self.sky_grad.clear();
         self.sky_grad.resize(sky.texels.len(), 0.0);
         for (t, g) in taps.iter().zip(&self.cgrads.sky) {
             Sky::scatter(t, *g, &mut self.sky_grad);
         }
         // Flattening and density statistics over the Gaussians drawn in this view.
-        let mut drawn = Vec::new();
-        self.backend.for_each_drawn(&self.ctx, &mut |i, r| drawn.push((i, r)));
-        let owner = |wi: usize, parts: &[crate::compose::Part]| {
-            parts
-                .iter()
-                .find(|p| wi >= p.start && wi < p.start + p.len)
-                .map(|p| (p.actor.map_or(0, |a| a + 1), wi - p.start))
-        };
         let densifying = it < self.cfg.densify_schedule().1;
         for st in self.state.stats.iter_mut().zip(self.state.model.sets()) {
             st.0.fit(st.1.len());
@@ -163,8 +178,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
         let max_side = w.max(h) as f64;
         let mut flat = 0.0;
         let nvis = drawn.len().max(1) as f64;
-        for &(wi, radius) in &drawn {
-            let Some((set, i)) = owner(wi, &self.composed.parts) else { continue };
+        for &(wi, radius, set, i) in &drawn {
             let scales = &self.composed.world.log_scales[wi];
             let (k, lmin) = (0..3).map(|k| (k, scales[k])).fold((0, f64::MAX), |a, b| if b.1 < a.1 { b } else { a });
             flat += lmin.exp();
@@ -178,7 +192,16 @@ impl<'a, B: Backend> Trainer<'a, B> {
         parts.flat = flat / nvis;
         parts.total += self.cfg.loss.flat * parts.flat;
         let mean_lr = means_lr(&self.cfg.lr, self.extent, it, self.cfg.iterations);
-        adam_step(&mut self.state.model, &mut self.state.adam, &self.grads, &self.sky_grad, &self.cfg.lr, mean_lr);
+        adam_step(
+            &mut self.state.model,
+            &mut self.state.adam,
+            &self.grads,
+            &self.sky_grad,
+            &self.cfg.lr,
+            mean_lr,
+            degree,
+        );
+        self.touched = Some(rows);
         let densified = self.density_control(it + 1);
         self.state.next_iteration = it + 1;
         StepReport {
@@ -191,7 +214,12 @@ impl<'a, B: Backend> Trainer<'a, B> {
 
     /// Density control after 1-based iteration `n` (nothing when the schedule says so).
     pub fn density_control(&mut self, n: usize) -> Option<Counts> {
-        density_control(&mut self.state, &self.cfg, self.extent, n, &self.space)
+        let counts = density_control(&mut self.state, &self.cfg, self.extent, n, &self.space);
+        if counts.is_some() {
+            // Rows moved: the next step zeroes every gradient row.
+            self.touched = None;
+        }
+        counts
     }
 }
 

@@ -209,7 +209,7 @@ fn one_device_step_matches_the_host_step() {
         }
         let mut reference = st.clone();
         let mean_lr = recon::optim::means_lr(&cfg.lr, extent, it, cfg.iterations);
-        recon::optim::adam_step(&mut reference.model, &mut reference.adam, &dg, &dsky, &cfg.lr, mean_lr);
+        recon::optim::adam_step(&mut reference.model, &mut reference.adam, &dg, &dsky, &cfg.lr, mean_lr, cfg.sh_degree);
         for (k, ((r, d), g)) in reference.model.sets().zip(dstate.model.sets()).zip(&dg).enumerate() {
             for (((name, rv), (_, dv)), (_, gv)) in arrays(r).iter().zip(arrays(d).iter()).zip(arrays(g).iter()) {
                 for j in 0..rv.len() {

@@ -130,3 +130,41 @@ fn actors_outside_their_lifespan_are_not_drawn_unless_posed() {
     assert_eq!(c.world.len(), 4);
     assert!((c.world.means[0][0] - 50.0 - m.actors[0].gaussians.means[0][0]).abs() < 1e-12);
 }
+
+#[test]
+fn scattering_the_drawn_rows_equals_the_dense_scatter() {
+    let (sc, m) = (scene(), model());
+    let mut c = Composed::default();
+    compose_into(&m, &sc, 0.5, 2, Layers::All, &|_: usize| None, &mut c);
+    let drawn = [0usize, 2, 3, 6];
+    let mut gw = Gradients::default();
+    gw.reset(&c.world, 0);
+    let k = gw.sh.len() / c.world.len();
+    let mut x = 0.2;
+    for &wi in &drawn {
+        let mut next = || {
+            x = (x * 7.3 + 0.31) % 1.0;
+            x - 0.5
+        };
+        gw.means[wi] = [next(), next(), next()];
+        gw.log_scales[wi] = [next(), next(), next()];
+        gw.rotations[wi] = [next(), next(), next(), next()];
+        gw.opacity_logits[wi] = next();
+        gw.sh[wi * k..(wi + 1) * k].iter_mut().for_each(|v| *v = next());
+    }
+    let mut dense: Vec<_> = m.sets().map(zeros_like).collect();
+    scatter_gradients(&c, &gw, &mut dense);
+    // The sparse path starts from stale rows it zeroes first.
+    let mut sparse: Vec<_> = m.sets().map(zeros_like).collect();
+    let rows: Vec<(usize, usize)> = drawn.iter().map(|&wi| c.set_row(wi).unwrap()).collect();
+    for &(set, i) in &rows {
+        sparse[set].means[i] = [9.0; 3];
+        let kd = sparse[set].coeffs() * 3;
+        sparse[set].sh[i * kd] = 9.0;
+    }
+    zero_rows(&mut sparse, &rows);
+    scatter_rows(&c, &gw, &mut sparse, &drawn);
+    assert_eq!(sparse, dense);
+    assert!(dense.iter().any(|g| g.means.iter().flatten().any(|v| *v != 0.0)));
+    assert_eq!(c.set_row(c.world.len()), None);
+}
