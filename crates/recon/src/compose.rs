@@ -197,16 +197,18 @@ fn scatter_row(composed: &Composed, pi: usize, j: usize, gw: &Gradients, grads: 
     }
 }
 
-/// Zeroes rows `rows` (set, row) of per-model gradient buffers already shaped like the model.
-pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)]) {
+/// Zeroes rows `rows` (set, row) of per-model gradient buffers already shaped like the model,
+/// which a scatter at SH degree `degree` wrote (the coefficients of higher bands it left zero).
+pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize) {
     for &(set, i) in rows {
         let g = &mut grads[set];
         let kd = g.coeffs() * 3;
+        let used = sh_coeffs(degree.min(g.sh_degree)) * 3;
         g.means[i] = [0.0; 3];
         g.log_scales[i] = [0.0; 3];
         g.rotations[i] = [0.0; 4];
         g.opacity_logits[i] = 0.0;
-        g.sh[i * kd..(i + 1) * kd].fill(0.0);
+        g.sh[i * kd..i * kd + used].fill(0.0);
     }
 }
 

@@ -58,46 +58,85 @@ impl Step {
         *p -= lr * mh / (vh.sqrt() + EPS);
     }
 
-    /// Element-wise over the slices, in parallel chunks (each element is independent, so the
-    /// result does not depend on the thread count).
-    fn slice(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: f64, rows: Rows) {
-        self.slice_with(p, g, m, v, &|_| lr, rows);
+    /// One learning rate over equal-length slices: no per-element call, so the loop vectorises
+    /// (IEEE square root and division round the same in vector and scalar form: the same bits).
+    #[inline(always)]
+    fn run(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: f64) {
+        let n = p.len();
+        let (g, m, v) = (&g[..n], &mut m[..n], &mut v[..n]);
+        for i in 0..n {
+            self.apply(&mut p[i], g[i], &mut m[i], &mut v[i], lr);
+        }
     }
 
-    /// As `slice`, over rows of `p.len() / rows.n` elements, of which the first `rows.used`.
-    fn slice_with(
-        &self,
-        p: &mut [f64],
-        g: &[f64],
-        m: &mut [f64],
-        v: &mut [f64],
-        lr: &(dyn Fn(usize) -> f64 + Sync),
-        rows: Rows,
-    ) {
-        const ROWS: usize = 1 << 11;
-        let Some(width) = p.len().checked_div(rows.n).filter(|w| *w > 0) else { return };
-        let (chunk, used) = (ROWS * width, rows.used.min(width));
-        p.par_chunks_mut(chunk).zip(m.par_chunks_mut(chunk)).zip(v.par_chunks_mut(chunk)).enumerate().for_each(
-            |(c, ((p, m), v))| {
-                let base = c * chunk;
-                for r in 0..p.len() / width {
-                    for i in r * width..r * width + used {
-                        self.apply(&mut p[i], g[base + i], &mut m[i], &mut v[i], lr(base + i));
+    /// Every row of a chunk: at once when one segment spans the row, else segment by segment.
+    #[inline(always)]
+    fn chunk(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], rows: &Rows) {
+        let w = rows.width;
+        match rows.segments {
+            ((0, end, lr), None) if end == w => self.run(p, g, m, v, lr),
+            (first, second) => {
+                for r in 0..p.len() / w {
+                    for (a, b, lr) in std::iter::once(first).chain(second) {
+                        let (a, b) = (r * w + a, r * w + b);
+                        self.run(&mut p[a..b], &g[a..b], &mut m[a..b], &mut v[a..b], lr);
                     }
                 }
-            },
-        );
+            }
+        }
+    }
+
+    /// `chunk` built for AVX2 where the CPU has it (4 lanes of f64), else for the baseline.
+    fn chunk_dispatch(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], rows: &Rows) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2")]
+            unsafe fn avx2(s: &Step, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], rows: &Rows) {
+                s.chunk(p, g, m, v, rows)
+            }
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2 (checked at run time just above).
+                return unsafe { avx2(self, p, g, m, v, rows) };
+            }
+        }
+        self.chunk(p, g, m, v, rows)
+    }
+
+    /// Element-wise over the rows, in parallel chunks of rows (each element is independent, so
+    /// the result does not depend on the thread count).
+    fn slice(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], rows: Rows) {
+        const ROWS: usize = 1 << 11;
+        if rows.width == 0 || p.is_empty() {
+            return;
+        }
+        let chunk = ROWS * rows.width;
+        p.par_chunks_mut(chunk)
+            .zip(m.par_chunks_mut(chunk))
+            .zip(v.par_chunks_mut(chunk))
+            .enumerate()
+            .for_each(|(c, ((p, m), v))| self.chunk_dispatch(p, &g[c * chunk..c * chunk + p.len()], m, v, &rows));
     }
 }
 
-/// The rows of one parameter array an Adam step updates: `n` rows, and of each row the first
-/// `used` elements (the rest are SH coefficients of bands the schedule has not drawn yet: their
-/// gradients and both moments are zero, so Adam would leave them as they are; skipping them gives
-/// the same bits).
+/// How Adam walks one parameter array: rows of `width` elements, and in each row one or two
+/// segments `(start, end, learning rate)`. An SH row has its DC coefficients at one rate and the
+/// rest at another, and ends at the bands the schedule has drawn: the coefficients of the bands
+/// not drawn yet have zero gradients and both moments zero, so Adam would leave them as they
+/// are; skipping them gives the same bits.
 #[derive(Clone, Copy)]
 struct Rows {
-    n: usize,
-    used: usize,
+    width: usize,
+    segments: (Segment, Option<Segment>),
+}
+
+/// `(start, end, learning rate)` within a row.
+type Segment = (usize, usize, f64);
+
+impl Rows {
+    /// Whole rows of `width` at rate `lr`.
+    fn whole(width: usize, lr: f64) -> Rows {
+        Rows { width, segments: ((0, width, lr), None) }
+    }
 }
 
 /// One Adam step on every parameter of `model` with gradients `grads` (same shapes) and sky
@@ -118,46 +157,41 @@ pub fn adam_step(
     let s = Step { bc1: 1.0 - BETA1.powi(t), bc2: 1.0 - BETA2.powi(t) };
     let sets: Vec<&mut Gaussians> = model.sets_mut().collect();
     for (((p, g), m), v) in sets.into_iter().zip(grads).zip(&mut state.m).zip(&mut state.v) {
-        let rows = Rows { n: p.len(), used: usize::MAX };
         s.slice(
             p.means.as_flattened_mut(),
             g.means.as_flattened(),
             m.means.as_flattened_mut(),
             v.means.as_flattened_mut(),
-            mean_lr,
-            rows,
+            Rows::whole(3, mean_lr),
         );
         s.slice(
             p.log_scales.as_flattened_mut(),
             g.log_scales.as_flattened(),
             m.log_scales.as_flattened_mut(),
             v.log_scales.as_flattened_mut(),
-            lr.log_scales,
-            rows,
+            Rows::whole(3, lr.log_scales),
         );
         s.slice(
             p.rotations.as_flattened_mut(),
             g.rotations.as_flattened(),
             m.rotations.as_flattened_mut(),
             v.rotations.as_flattened_mut(),
-            lr.rotations,
-            rows,
+            Rows::whole(4, lr.rotations),
         );
         s.slice(
             &mut p.opacity_logits,
             &g.opacity_logits,
             &mut m.opacity_logits,
             &mut v.opacity_logits,
-            lr.opacity,
-            rows,
+            Rows::whole(1, lr.opacity),
         );
-        let k = p.coeffs() * 3;
-        let rate = |j: usize| if j % k < 3 { lr.sh_dc } else { lr.sh_rest };
-        let sh = Rows { used: sh_coeffs(sh_degree.min(p.sh_degree)) * 3, ..rows };
-        s.slice_with(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, &rate, sh);
+        // DC (3 values) at `sh_dc`, the drawn higher bands at `sh_rest`.
+        let (k, used) = (p.coeffs() * 3, sh_coeffs(sh_degree.min(p.sh_degree)) * 3);
+        let rest = (used > 3).then_some((3, used, lr.sh_rest));
+        let sh = Rows { width: k, segments: ((0, 3.min(k), lr.sh_dc), rest) };
+        s.slice(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, sh);
     }
-    let sky = Rows { n: model.sky.texels.len(), used: usize::MAX };
-    s.slice(&mut model.sky.texels, sky_grad, &mut state.sky_m, &mut state.sky_v, lr.sky, sky);
+    s.slice(&mut model.sky.texels, sky_grad, &mut state.sky_m, &mut state.sky_v, Rows::whole(1, lr.sky));
 }
 
 #[cfg(test)]
@@ -233,6 +267,62 @@ mod tests {
             }
             let (fa, fb) = (flat(&a), flat(&b));
             assert!(fa.iter().zip(&fb).all(|(x, y)| x.to_bits() == y.to_bits()), "degree {degree}");
+            // ...and both are the plain per-element loop over every value.
+            let mut c = m0.clone();
+            let mut sc = AdamState::new(&c);
+            for t in 1..=3 {
+                let s = Step { bc1: 1.0 - BETA1.powi(t), bc2: 1.0 - BETA2.powi(t) };
+                let sets: Vec<&mut Gaussians> = c.sets_mut().collect();
+                for (((p, g), m), v) in sets.into_iter().zip(&grads).zip(&mut sc.m).zip(&mut sc.v) {
+                    let each = |p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], lr: &dyn Fn(usize) -> f64| {
+                        for i in 0..p.len() {
+                            s.apply(&mut p[i], g[i], &mut m[i], &mut v[i], lr(i));
+                        }
+                    };
+                    let (pm, gm, mm, vm) = (&mut p.means, &g.means, &mut m.means, &mut v.means);
+                    each(
+                        pm.as_flattened_mut(),
+                        gm.as_flattened(),
+                        mm.as_flattened_mut(),
+                        vm.as_flattened_mut(),
+                        &|_| 1e-3,
+                    );
+                    let (ps, gs, ms, vs) = (&mut p.log_scales, &g.log_scales, &mut m.log_scales, &mut v.log_scales);
+                    let r = lr.log_scales;
+                    each(
+                        ps.as_flattened_mut(),
+                        gs.as_flattened(),
+                        ms.as_flattened_mut(),
+                        vs.as_flattened_mut(),
+                        &|_| r,
+                    );
+                    let (pr, gr, mr, vr) = (&mut p.rotations, &g.rotations, &mut m.rotations, &mut v.rotations);
+                    let r = lr.rotations;
+                    each(
+                        pr.as_flattened_mut(),
+                        gr.as_flattened(),
+                        mr.as_flattened_mut(),
+                        vr.as_flattened_mut(),
+                        &|_| r,
+                    );
+                    let r = lr.opacity;
+                    each(
+                        &mut p.opacity_logits,
+                        &g.opacity_logits,
+                        &mut m.opacity_logits,
+                        &mut v.opacity_logits,
+                        &|_| r,
+                    );
+                    let (dc, rest) = (lr.sh_dc, lr.sh_rest);
+                    each(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, &|j| if j % 48 < 3 { dc } else { rest });
+                }
+                let r = lr.sky;
+                let (pk, mk, vk) = (&mut c.sky.texels, &mut sc.sky_m, &mut sc.sky_v);
+                for i in 0..pk.len() {
+                    s.apply(&mut pk[i], sky_grad[i], &mut mk[i], &mut vk[i], r);
+                }
+            }
+            assert!(flat(&c).iter().zip(&fa).all(|(x, y)| x.to_bits() == y.to_bits()), "degree {degree}: plain loop");
             assert!(fa.iter().zip(&flat(&m0)).any(|(x, y)| x != y), "the step moved something");
             assert_eq!(sa, sb, "degree {degree}: moments");
         }

@@ -49,9 +49,10 @@ pub struct Trainer<'a, B: Backend> {
     grads: Vec<Gaussians>,
     cgrads: ChannelGrads,
     sky_grad: Vec<f64>,
-    /// The (set, row)s the last step scattered gradients to: the only rows of `grads` that can be
-    /// non-zero (`None` after density control, which moves rows: then every row is zeroed).
-    touched: Option<Vec<(usize, usize)>>,
+    /// The SH degree and the (set, row)s the last step scattered gradients to: the only rows of
+    /// `grads` that can be non-zero (`None` after density control, which moves rows: then every
+    /// row is zeroed).
+    touched: Option<(usize, Vec<(usize, usize)>)>,
 }
 
 /// Seed for a purpose at an iteration (splitmix-style mixing).
@@ -159,7 +160,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
                 .zip(self.state.model.sets())
                 .all(|(g, m)| g.len() == m.len() && g.sh_degree == m.sh_degree);
         match self.touched.take() {
-            Some(rows) if shaped => zero_rows(&mut self.grads, &rows),
+            Some((d, rows)) if shaped => zero_rows(&mut self.grads, &rows, d),
             _ => reset_gradients(&self.state.model, &mut self.grads),
         }
         let world_rows: Vec<usize> = drawn.iter().map(|d| d.0).collect();
@@ -201,7 +202,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             mean_lr,
             degree,
         );
-        self.touched = Some(rows);
+        self.touched = Some((degree, rows));
         let densified = self.density_control(it + 1);
         self.state.next_iteration = it + 1;
         StepReport {

@@ -162,7 +162,7 @@ fn scattering_the_drawn_rows_equals_the_dense_scatter() {
         let kd = sparse[set].coeffs() * 3;
         sparse[set].sh[i * kd] = 9.0;
     }
-    zero_rows(&mut sparse, &rows);
+    zero_rows(&mut sparse, &rows, 2);
     scatter_rows(&c, &gw, &mut sparse, &drawn);
     assert_eq!(sparse, dense);
     assert!(dense.iter().any(|g| g.means.iter().flatten().any(|v| *v != 0.0)));
