@@ -36,6 +36,7 @@ pub mod out_dir;
 pub mod pose;
 pub mod priors;
 pub mod resume;
+pub mod schedule;
 pub mod session;
 pub mod sh_rotate;
 pub mod sky;

@@ -10,7 +10,7 @@ use super::kernels::{linear, Kernels};
 use super::model::{DeviceModel, Params};
 use crate::actor_space::SpaceGrid;
 use crate::densify_rule::{finish_codes, kept_children, Counts, KEEP};
-use crate::train::DensityStep;
+use crate::schedule::DensityStep;
 use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, PushKernelArg};
 use std::sync::Arc;
 

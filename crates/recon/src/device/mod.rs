@@ -23,7 +23,8 @@ use crate::checkpoint::TrainState;
 use crate::config::TrainConfig;
 use crate::data::View;
 use crate::optim::{means_lr, BETA1, BETA2};
-use crate::train::{density_step, train_views, view_for, StepReport};
+use crate::schedule::density_step;
+use crate::train::{train_views, view_for, StepReport};
 use crate::ReconError;
 use kernels::{linear, Kernels};
 use model::DeviceModel;
@@ -88,7 +89,7 @@ impl<'a> DeviceTrainer<'a> {
             .collect::<Result<_, _>>()?;
         let scratch = loss::Scratch::new(&s).map_err(dev)?;
         let segs = compose::Segments::new(&s).map_err(dev)?;
-        let space = crate::train::actor_space_of(scene, &state, &cfg);
+        let space = crate::schedule::actor_space_of(scene, &state, &cfg);
         let space = match space.voxels {
             0 => None,
             _ => Some((space.grid, s.clone_htod(&space.bits).map_err(dev)?)),
