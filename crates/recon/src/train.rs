@@ -1,8 +1,8 @@
 //! The training loop: per iteration one training view (a seeded permutation per epoch, derived
 //! from `(seed, epoch)`), compose the scene at the view's time, render, the view loss plus the
 //! flattening term, backward, scatter to the models, Adam, and density control on the 3DGS
-//! schedule (`schedule`). Every random choice derives from `(seed, iteration)` and every reduction runs in a
-//! fixed order, so a resumed run reproduces an uninterrupted one exactly.
+//! schedule (`schedule`). Every random choice derives from `(seed, iteration)` and every reduction
+//! runs in a fixed order, so a resumed run reproduces an uninterrupted one exactly.
 
 use crate::actor_space::ActorSpace;
 use crate::backend::Backend;
