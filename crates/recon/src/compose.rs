@@ -14,6 +14,7 @@
 use crate::model::{clear, SceneModel};
 use crate::pose::{box_pose_at, BoxPose};
 use crate::sh_rotate::ShRotation;
+use rayon::prelude::*;
 use scene::Scene;
 use splat::backward::Gradients;
 use splat::sh::sh_coeffs;
@@ -130,13 +131,69 @@ pub fn scatter_gradients(composed: &Composed, gw: &Gradients, grads: &mut [Gauss
 
 /// [`scatter_gradients`] for the world rows `world_rows` only: the same sums where every other
 /// row's world gradient is zero (a Gaussian the view did not draw has none), without visiting the
-/// rest of the scene.
+/// rest of the scene. The background's rows (most of them) are added in parallel chunks of rows.
 pub fn scatter_rows(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians], world_rows: &[usize]) {
-    for &wi in world_rows {
+    // The background, when drawn, is the first part: world rows [0, n) in its own order.
+    let n = composed.parts.first().filter(|p| p.actor.is_none()).map_or(0, |p| p.len);
+    let (mut background, actors): (Vec<usize>, Vec<usize>) = world_rows.iter().partition(|&&wi| wi < n);
+    background.sort_unstable();
+    let k = sh_coeffs(composed.world.sh_degree) * 3;
+    if let Some(dst) = grads.first_mut() {
+        par_rows(dst, &background, &|i, row| {
+            for a in 0..3 {
+                row.log_scales[a] += gw.log_scales[i][a];
+            }
+            *row.opacity += gw.opacity_logits[i];
+            for a in 0..3 {
+                row.means[a] += gw.means[i][a];
+            }
+            for a in 0..4 {
+                row.rotations[a] += gw.rotations[i][a];
+            }
+            for (d, g) in row.sh.iter_mut().zip(&gw.sh[i * k..(i + 1) * k]) {
+                *d += g;
+            }
+        });
+    }
+    for &wi in &actors {
         if let Some((pi, j)) = composed.owner(wi) {
             scatter_row(composed, pi, j, gw, grads);
         }
     }
+}
+
+/// One row of a `Gaussians`, borrowed field by field.
+struct RowMut<'a> {
+    means: &'a mut [f64; 3],
+    log_scales: &'a mut [f64; 3],
+    rotations: &'a mut [f64; 4],
+    opacity: &'a mut f64,
+    sh: &'a mut [f64],
+}
+
+/// Calls `f(i, row i)` for every row `i` of the ascending list `rows`, in parallel chunks of rows
+/// (each row is visited once, so the result does not depend on the thread count).
+fn par_rows(g: &mut Gaussians, rows: &[usize], f: &(dyn Fn(usize, RowMut) + Sync)) {
+    const R: usize = 1 << 12;
+    let kd = g.coeffs() * 3;
+    let Gaussians { means, log_scales, rotations, opacity_logits, sh, .. } = g;
+    let chunks = means.par_chunks_mut(R).zip(log_scales.par_chunks_mut(R)).zip(rotations.par_chunks_mut(R));
+    chunks.zip(opacity_logits.par_chunks_mut(R)).zip(sh.par_chunks_mut(R * kd)).enumerate().for_each(
+        |(c, ((((m, s), q), o), sh))| {
+            let (lo, hi) = (rows.partition_point(|&i| i < c * R), rows.partition_point(|&i| i < (c + 1) * R));
+            for &i in &rows[lo..hi] {
+                let j = i - c * R;
+                let row = RowMut {
+                    means: &mut m[j],
+                    log_scales: &mut s[j],
+                    rotations: &mut q[j],
+                    opacity: &mut o[j],
+                    sh: &mut sh[j * kd..(j + 1) * kd],
+                };
+                f(i, row);
+            }
+        },
+    );
 }
 
 impl Composed {
@@ -200,15 +257,31 @@ fn scatter_row(composed: &Composed, pi: usize, j: usize, gw: &Gradients, grads: 
 /// Zeroes rows `rows` (set, row) of per-model gradient buffers already shaped like the model,
 /// which a scatter at SH degree `degree` wrote (the coefficients of higher bands it left zero).
 pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize) {
-    for &(set, i) in rows {
-        let g = &mut grads[set];
-        let kd = g.coeffs() * 3;
+    let zero = |row: RowMut, used: usize| {
+        *row.means = [0.0; 3];
+        *row.log_scales = [0.0; 3];
+        *row.rotations = [0.0; 4];
+        *row.opacity = 0.0;
+        row.sh[..used].fill(0.0);
+    };
+    let mut background: Vec<usize> = rows.iter().filter(|r| r.0 == 0).map(|r| r.1).collect();
+    background.sort_unstable();
+    if let Some(g) = grads.first_mut() {
         let used = sh_coeffs(degree.min(g.sh_degree)) * 3;
-        g.means[i] = [0.0; 3];
-        g.log_scales[i] = [0.0; 3];
-        g.rotations[i] = [0.0; 4];
-        g.opacity_logits[i] = 0.0;
-        g.sh[i * kd..i * kd + used].fill(0.0);
+        par_rows(g, &background, &|_, row| zero(row, used));
+    }
+    for &(set, i) in rows.iter().filter(|r| r.0 != 0) {
+        let g = &mut grads[set];
+        let (kd, used) = (g.coeffs() * 3, sh_coeffs(degree.min(g.sh_degree)) * 3);
+        let Gaussians { means, log_scales, rotations, opacity_logits, sh, .. } = g;
+        let row = RowMut {
+            means: &mut means[i],
+            log_scales: &mut log_scales[i],
+            rotations: &mut rotations[i],
+            opacity: &mut opacity_logits[i],
+            sh: &mut sh[i * kd..(i + 1) * kd],
+        };
+        zero(row, used);
     }
 }
 
