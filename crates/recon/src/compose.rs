@@ -264,24 +264,15 @@ pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize
         *row.opacity = 0.0;
         row.sh[..used].fill(0.0);
     };
-    let mut background: Vec<usize> = rows.iter().filter(|r| r.0 == 0).map(|r| r.1).collect();
-    background.sort_unstable();
-    if let Some(g) = grads.first_mut() {
+    let mut by_set: Vec<Vec<usize>> = vec![Vec::new(); grads.len()];
+    rows.iter().for_each(|&(set, i)| by_set[set].push(i));
+    for (g, mut rows) in grads.iter_mut().zip(by_set) {
+        if rows.is_empty() {
+            continue;
+        }
+        rows.sort_unstable();
         let used = sh_coeffs(degree.min(g.sh_degree)) * 3;
-        par_rows(g, &background, &|_, row| zero(row, used));
-    }
-    for &(set, i) in rows.iter().filter(|r| r.0 != 0) {
-        let g = &mut grads[set];
-        let (kd, used) = (g.coeffs() * 3, sh_coeffs(degree.min(g.sh_degree)) * 3);
-        let Gaussians { means, log_scales, rotations, opacity_logits, sh, .. } = g;
-        let row = RowMut {
-            means: &mut means[i],
-            log_scales: &mut log_scales[i],
-            rotations: &mut rotations[i],
-            opacity: &mut opacity_logits[i],
-            sh: &mut sh[i * kd..(i + 1) * kd],
-        };
-        zero(row, used);
+        par_rows(g, &rows, &|_, row| zero(row, used));
     }
 }
 
