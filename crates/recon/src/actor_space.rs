@@ -12,8 +12,8 @@
 //! A voxel belongs to the space when its centre lies inside some logged state's box shrunk by half
 //! the voxel's diagonal (above the floor band), so every point of a marked voxel is inside that box:
 //! the set never reaches outside a box. The grid covers the boxes' bounds; its voxel grows from
-//! [`VOXEL_M`] until it fits [`MAX_VOXELS`] and the boxes' voxel tests fit [`MAX_TESTS`]. The device reads the same bits (`densify.cu`,
-//! `space_prune`) with the same f64 arithmetic.
+//! [`VOXEL_M`] until it fits [`MAX_VOXELS`] and the boxes' voxel tests fit [`MAX_TESTS`]. The
+//! device reads the same bits (`densify.cu`, `space_prune`) with the same f64 arithmetic.
 
 use crate::init::ACTOR_FLOOR_M;
 use crate::model::SceneModel;

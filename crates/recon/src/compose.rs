@@ -122,18 +122,16 @@ pub fn compose_into(
 /// Adds the world-frame gradients `gw` of a composed scene to per-model gradients `grads`
 /// (background first, then actors: the order of `SceneModel::sets`), each shaped like its model.
 pub fn scatter_gradients(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians]) {
-    for (pi, part) in composed.parts.iter().enumerate() {
-        for j in 0..part.len {
-            scatter_row(composed, pi, j, gw, grads);
-        }
-    }
+    let every: Vec<usize> = (0..composed.world.len()).collect();
+    scatter_rows(composed, gw, grads, &every);
 }
 
 /// [`scatter_gradients`] for the world rows `world_rows` only: the same sums where every other
 /// row's world gradient is zero (a Gaussian the view did not draw has none), without visiting the
 /// rest of the scene. The background's rows (most of them) are added in parallel chunks of rows.
 pub fn scatter_rows(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians], world_rows: &[usize]) {
-    // The background, when drawn, is the first part: world rows [0, n) in its own order.
+    // The background, when drawn, is the first part: world rows [0, n) in its own order; every
+    // other part is an actor's, with its pose.
     let n = composed.parts.first().filter(|p| p.actor.is_none()).map_or(0, |p| p.len);
     let (mut background, actors): (Vec<usize>, Vec<usize>) = world_rows.iter().partition(|&&wi| wi < n);
     background.sort_unstable();
@@ -157,7 +155,7 @@ pub fn scatter_rows(composed: &Composed, gw: &Gradients, grads: &mut [Gaussians]
     }
     for &wi in &actors {
         if let Some((pi, j)) = composed.owner(wi) {
-            scatter_row(composed, pi, j, gw, grads);
+            scatter_actor_row(composed, pi, j, gw, grads);
         }
     }
 }
@@ -210,53 +208,52 @@ impl Composed {
     }
 }
 
-/// Row `j` of part `pi`: world gradients back to its model's frame, added to `grads`.
-fn scatter_row(composed: &Composed, pi: usize, j: usize, gw: &Gradients, grads: &mut [Gaussians]) {
+/// Row `j` of actor part `pi`: world gradients back to its box frame, added to `grads`.
+fn scatter_actor_row(composed: &Composed, pi: usize, j: usize, gw: &Gradients, grads: &mut [Gaussians]) {
     let part = &composed.parts[pi];
+    let (Some(actor), Some((pose, rot))) = (part.actor, &part.pose) else {
+        debug_assert!(false, "part {pi} is the background: its rows are scattered by par_rows");
+        return;
+    };
     let active = composed.world.sh_degree;
     let k = sh_coeffs(active) * 3;
-    let dst = &mut grads[part.actor.map_or(0, |a| a + 1)];
+    let dst = &mut grads[actor + 1];
     let kd = dst.coeffs() * 3;
     let (i, wi) = (j, part.start + j);
-    let gsh = &gw.sh[wi * k..(wi + 1) * k];
-    let dsh = &mut dst.sh[i * kd..(i + 1) * kd];
     for a in 0..3 {
         dst.log_scales[i][a] += gw.log_scales[wi][a];
     }
     dst.opacity_logits[i] += gw.opacity_logits[wi];
-    match &part.pose {
-        None => {
-            for a in 0..3 {
-                dst.means[i][a] += gw.means[wi][a];
-            }
-            for a in 0..4 {
-                dst.rotations[i][a] += gw.rotations[wi][a];
-            }
-            for (d, g) in dsh.iter_mut().zip(gsh) {
-                *d += g;
-            }
-        }
-        Some((pose, rot)) => {
-            let r = yaw_rotation(pose.heading);
-            let gm = gw.means[wi];
-            for a in 0..3 {
-                dst.means[i][a] += (0..3).map(|b| r[b][a] * gm[b]).sum::<f64>();
-            }
-            let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
-            let [gw_, gx, gy, gz] = gw.rotations[wi];
-            let q = &mut dst.rotations[i];
-            q[0] += c * gw_ + s * gz;
-            q[1] += c * gx + s * gy;
-            q[2] += -s * gx + c * gy;
-            q[3] += -s * gw_ + c * gz;
-            rot.grad_to_local(gsh, dsh, active);
-        }
+    let r = yaw_rotation(pose.heading);
+    let gm = gw.means[wi];
+    for a in 0..3 {
+        dst.means[i][a] += (0..3).map(|b| r[b][a] * gm[b]).sum::<f64>();
+    }
+    let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
+    let [gw_, gx, gy, gz] = gw.rotations[wi];
+    let q = &mut dst.rotations[i];
+    q[0] += c * gw_ + s * gz;
+    q[1] += c * gx + s * gy;
+    q[2] += -s * gx + c * gy;
+    q[3] += -s * gw_ + c * gz;
+    rot.grad_to_local(&gw.sh[wi * k..(wi + 1) * k], &mut dst.sh[i * kd..(i + 1) * kd], active);
+}
+
+/// Readies per-model gradient buffers for a scatter: when they are shaped like the model and
+/// `touched` names the SH degree and (set, row)s the last scatter wrote, only those rows are
+/// zeroed; otherwise every buffer is zeroed, reshaped to the model.
+pub fn clear_gradients(model: &SceneModel, grads: &mut Vec<Gaussians>, touched: Option<(usize, &[(usize, usize)])>) {
+    let shaped = grads.len() == model.actors.len() + 1
+        && grads.iter().zip(model.sets()).all(|(g, m)| g.len() == m.len() && g.sh_degree == m.sh_degree);
+    match touched {
+        Some((degree, rows)) if shaped => zero_rows(grads, rows, degree),
+        _ => reset_gradients(model, grads),
     }
 }
 
 /// Zeroes rows `rows` (set, row) of per-model gradient buffers already shaped like the model,
 /// which a scatter at SH degree `degree` wrote (the coefficients of higher bands it left zero).
-pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize) {
+fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize) {
     let zero = |row: RowMut, used: usize| {
         *row.means = [0.0; 3];
         *row.log_scales = [0.0; 3];
@@ -277,7 +274,7 @@ pub fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize
 }
 
 /// Zeroes per-model gradient buffers, resizing them to the model's current shape.
-pub fn reset_gradients(model: &SceneModel, grads: &mut Vec<Gaussians>) {
+fn reset_gradients(model: &SceneModel, grads: &mut Vec<Gaussians>) {
     grads.resize_with(model.actors.len() + 1, || crate::model::empty(0));
     for (g, m) in grads.iter_mut().zip(model.sets()) {
         if g.len() != m.len() || g.sh_degree != m.sh_degree {

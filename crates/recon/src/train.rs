@@ -8,7 +8,7 @@ use crate::actor_space::ActorSpace;
 use crate::backend::Backend;
 use crate::camera::pixel_ray;
 use crate::checkpoint::TrainState;
-use crate::compose::{compose_into, reset_gradients, scatter_rows, zero_rows, Composed, Layers};
+use crate::compose::{clear_gradients, compose_into, scatter_rows, Composed, Layers};
 use crate::config::TrainConfig;
 use crate::data::View;
 use crate::densify::{Counts, Stats};
@@ -154,16 +154,8 @@ impl<'a, B: Backend> Trainer<'a, B> {
         // (world row, half extent, set, row in the set) of every drawn Gaussian.
         let drawn: Vec<_> =
             drawn.iter().filter_map(|&(wi, r)| composed.set_row(wi).map(|(s, i)| (wi, r, s, i))).collect();
-        let shaped = self.grads.len() == self.state.model.actors.len() + 1
-            && self
-                .grads
-                .iter()
-                .zip(self.state.model.sets())
-                .all(|(g, m)| g.len() == m.len() && g.sh_degree == m.sh_degree);
-        match self.touched.take() {
-            Some((d, rows)) if shaped => zero_rows(&mut self.grads, &rows, d),
-            _ => reset_gradients(&self.state.model, &mut self.grads),
-        }
+        let touched = self.touched.take();
+        clear_gradients(&self.state.model, &mut self.grads, touched.as_ref().map(|(d, rows)| (*d, rows.as_slice())));
         let world_rows: Vec<usize> = drawn.iter().map(|d| d.0).collect();
         let rows: Vec<(usize, usize)> = drawn.iter().map(|d| (d.2, d.3)).collect();
         scatter_rows(&self.composed, &self.wgrads, &mut self.grads, &world_rows);
