@@ -20,7 +20,7 @@ fn ok(out: Output) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-const CONFIG: &str = "iterations = 30\nscale = 1.0\ncheckpoint_interval = 5\nsky_res = 4\n\
+const CONFIG: &str = "iterations = 30\nscale = 1.0\ncheckpoint_interval = 5\ncheckpoint_min_seconds = 0\nsky_res = 4\n\
 [densify]\nfrom = 0.1\ninterval = 5\nuntil = 0.8\nopacity_reset_every = 0.6\n\
 [init]\nmax_points = 3000\nactor_points = 200\n";
 

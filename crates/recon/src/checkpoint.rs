@@ -16,6 +16,7 @@ use crate::optim::AdamState;
 use crate::sky::Sky;
 use serde::{Deserialize, Serialize};
 use splat::Gaussians;
+use std::io::Write;
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"CGSCKPT1";
@@ -58,18 +59,39 @@ pub struct TrainState {
     pub stats: Vec<Stats>,
 }
 
-fn put(out: &mut Vec<u8>, v: &[f64]) {
-    for x in v {
-        out.extend_from_slice(&x.to_le_bytes());
-    }
+/// The checkpoint's bytes on their way to the file: each value little-endian, the CRC-32C
+/// running over everything written, in chunks (never the whole payload in memory).
+struct Sink<'w> {
+    w: &'w mut dyn Write,
+    crc: u32,
+    chunk: Vec<u8>,
 }
 
-fn put_set(out: &mut Vec<u8>, g: &Gaussians) {
-    put(out, g.means.as_flattened());
-    put(out, g.log_scales.as_flattened());
-    put(out, g.rotations.as_flattened());
-    put(out, &g.opacity_logits);
-    put(out, &g.sh);
+impl Sink<'_> {
+    fn bytes(&mut self, b: &[u8]) -> std::io::Result<()> {
+        self.crc = crc32c::crc32c_append(self.crc, b);
+        self.w.write_all(b)
+    }
+
+    fn put(&mut self, v: &[f64]) -> std::io::Result<()> {
+        for part in v.chunks(8192) {
+            let mut chunk = std::mem::take(&mut self.chunk);
+            chunk.clear();
+            chunk.extend(part.iter().flat_map(|x| x.to_le_bytes()));
+            let r = self.bytes(&chunk);
+            self.chunk = chunk;
+            r?;
+        }
+        Ok(())
+    }
+
+    fn put_set(&mut self, g: &Gaussians) -> std::io::Result<()> {
+        self.put(g.means.as_flattened())?;
+        self.put(g.log_scales.as_flattened())?;
+        self.put(g.rotations.as_flattened())?;
+        self.put(&g.opacity_logits)?;
+        self.put(&g.sh)
+    }
 }
 
 pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), ReconError> {
@@ -95,25 +117,26 @@ pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), Recon
         run: Some(run.clone()),
     };
     let hjson = serde_json::to_vec(&header).map_err(|e| ReconError::Input(e.to_string()))?;
-    let mut out = Vec::new();
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&(hjson.len() as u64).to_le_bytes());
-    out.extend_from_slice(&hjson);
-    for (i, g) in st.model.sets().enumerate() {
-        put_set(&mut out, g);
-        put_set(&mut out, &st.adam.m[i]);
-        put_set(&mut out, &st.adam.v[i]);
-        let s = &st.stats[i];
-        put(&mut out, &s.grad_sum);
-        put(&mut out, &s.seen.iter().map(|v| *v as f64).collect::<Vec<_>>());
-        put(&mut out, &s.max_radius);
-    }
-    put(&mut out, &st.model.sky.texels);
-    put(&mut out, &st.adam.sky_m);
-    put(&mut out, &st.adam.sky_v);
-    let crc = crc32c::crc32c(&out);
-    out.extend_from_slice(&crc.to_le_bytes());
-    scene::write_file_atomic(path, &out)?;
+    scene::write_file_atomic_with(path, |w| {
+        let mut out = Sink { w, crc: 0, chunk: Vec::new() };
+        out.bytes(MAGIC)?;
+        out.bytes(&(hjson.len() as u64).to_le_bytes())?;
+        out.bytes(&hjson)?;
+        for (i, g) in st.model.sets().enumerate() {
+            out.put_set(g)?;
+            out.put_set(&st.adam.m[i])?;
+            out.put_set(&st.adam.v[i])?;
+            let s = &st.stats[i];
+            out.put(&s.grad_sum)?;
+            out.put(&s.seen.iter().map(|v| *v as f64).collect::<Vec<_>>())?;
+            out.put(&s.max_radius)?;
+        }
+        out.put(&st.model.sky.texels)?;
+        out.put(&st.adam.sky_m)?;
+        out.put(&st.adam.sky_v)?;
+        let crc = out.crc;
+        out.w.write_all(&crc.to_le_bytes())
+    })?;
     Ok(())
 }
 

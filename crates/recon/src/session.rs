@@ -150,6 +150,7 @@ fn run_in<B: Backend>(
     progress.set_length(cfg.iterations as u64);
     progress.set_position(start_it as u64);
     let t0 = Instant::now();
+    let mut last_checkpoint = t0;
     let mut recent = std::collections::VecDeque::new();
     let mut last = LossParts::default();
     while trainer.next_iteration() < end {
@@ -170,14 +171,16 @@ fn run_in<B: Backend>(
         if let Some(c) = rep.densified {
             tracing::debug!(iteration = n, ?c, gaussians = rep.gaussians, "density control");
         }
-        if cfg.checkpoint_interval > 0 && n.is_multiple_of(cfg.checkpoint_interval) && n < end {
+        if checkpoint_due(&cfg, n, end, last_checkpoint.elapsed().as_secs_f64()) {
             checkpoint::save(&ckpt_path, trainer.state()?, run)?;
+            last_checkpoint = Instant::now();
         }
     }
     let seconds = t0.elapsed().as_secs_f64();
     if let Runner::Device(d) = &trainer {
         let (secs, times) = d.density_seconds();
         tracing::info!(seconds = secs, times, "density control on the device");
+        tracing::info!(phases = %d.host_phases(), "host seconds per phase of the device iterations");
     }
     let state = trainer.state()?;
     checkpoint::save(&ckpt_path, state, run)?;
@@ -199,6 +202,15 @@ fn run_in<B: Backend>(
         views_held_out: views.iter().filter(|v| v.held_out).count(),
         already_finished: false,
     })
+}
+
+/// Whether a periodic checkpoint is written after 1-based iteration `n` of a run ending at `end`
+/// (the end always writes one), `since_last` seconds after the last checkpoint or the start.
+fn checkpoint_due(cfg: &TrainConfig, n: usize, end: usize, since_last: f64) -> bool {
+    cfg.checkpoint_interval > 0
+        && n.is_multiple_of(cfg.checkpoint_interval)
+        && n < end
+        && since_last >= cfg.checkpoint_min_seconds
 }
 
 /// The summary of a resumed run that had already finished (nothing trained, nothing written).
@@ -243,5 +255,23 @@ impl<B: Backend> Runner<'_, B> {
             Runner::Host(t) => Ok(&t.state),
             Runner::Device(t) => t.sync_host(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checkpoints_wait_for_their_interval_and_their_time() {
+        let cfg = TrainConfig { checkpoint_interval: 500, checkpoint_min_seconds: 300.0, ..Default::default() };
+        assert!(!checkpoint_due(&cfg, 500, 15_000, 120.0), "too soon after the start");
+        assert!(checkpoint_due(&cfg, 500, 15_000, 300.0));
+        assert!(!checkpoint_due(&cfg, 501, 15_000, 1e6), "not on the interval");
+        assert!(!checkpoint_due(&cfg, 15_000, 15_000, 1e6), "the end writes its own");
+        let every = TrainConfig { checkpoint_min_seconds: 0.0, ..cfg.clone() };
+        assert!(checkpoint_due(&every, 500, 15_000, 0.0));
+        let never = TrainConfig { checkpoint_interval: 0, ..every };
+        assert!(!checkpoint_due(&never, 500, 15_000, 1e6));
     }
 }

@@ -17,8 +17,14 @@ fn synth_scene(dir: &Path) -> std::path::PathBuf {
 }
 
 fn small_config() -> TrainConfig {
-    let mut cfg =
-        TrainConfig { iterations: 24, scale: 1.0, checkpoint_interval: 8, sh_degree_interval: 8, ..Default::default() };
+    let mut cfg = TrainConfig {
+        iterations: 24,
+        scale: 1.0,
+        checkpoint_interval: 8,
+        checkpoint_min_seconds: 0.0,
+        sh_degree_interval: 8,
+        ..Default::default()
+    };
     cfg.densify.from = 0.15;
     cfg.densify.interval = 5;
     cfg.densify.until = 0.8;

@@ -29,7 +29,7 @@ pub use glam;
 pub use map::{Map, Polyline};
 pub use model::{Ego, EgoSizeSource, Frame, ImageRef, LidarRef, Scene, Source, SourceKind, SCENE_FORMAT};
 pub use motion::Pose2;
-pub use output::{write_file_atomic, StagedDir};
+pub use output::{write_file_atomic, write_file_atomic_with, StagedDir};
 pub use owned::{check_replaceable, has_format_marker};
 pub use plan::{Behavior, Plan, PlanPath, Risk, Waypoint};
 pub use summary::SceneSummary;

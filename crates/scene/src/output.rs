@@ -8,6 +8,16 @@ use std::path::{Path, PathBuf};
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), SceneError> {
+    write_file_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// Writes `path` as [`write_file_atomic`] does, streaming: `fill` writes the content to a
+/// buffered writer on the temporary file, so a large file (a training checkpoint: a gigabyte at a
+/// million Gaussians) is never held whole in memory. An error from `fill` leaves nothing behind.
+pub fn write_file_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), SceneError> {
     let dir = parent_dir(path);
     std::fs::create_dir_all(&dir).map_err(|e| SceneError::io(&dir, e))?;
     let mut tmp = tempfile::Builder::new()
@@ -15,7 +25,10 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), SceneError> {
         .suffix(".tmp")
         .tempfile_in(&dir)
         .map_err(|e| SceneError::io(&dir, e))?;
-    tmp.write_all(bytes).map_err(|e| SceneError::io(tmp.path(), e))?;
+    let tmp_path = tmp.path().to_path_buf();
+    let mut w = std::io::BufWriter::with_capacity(1 << 18, tmp.as_file_mut());
+    fill(&mut w).and_then(|()| w.flush()).map_err(|e| SceneError::io(&tmp_path, e))?;
+    drop(w);
     // tempfile creates 0600 files; outputs are ordinary files.
     #[cfg(unix)]
     {
@@ -159,5 +172,24 @@ mod tests {
         write_file_atomic(&p, b"new").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"new");
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_streamed_file_that_fails_halfway_leaves_the_old_one() {
+        let root = tempfile::tempdir().unwrap();
+        let p = root.path().join("checkpoint.bin");
+        write_file_atomic(&p, b"old").unwrap();
+        // More than the writer's buffer, so part of it reaches the temporary file before the error.
+        let big = vec![7u8; 3 << 18];
+        let r = write_file_atomic_with(&p, |w| {
+            w.write_all(&big)?;
+            Err(std::io::Error::other("disk full"))
+        });
+        let e = r.expect_err("the fill's error is returned").to_string();
+        assert!(e.contains("disk full"), "{e}");
+        assert_eq!(std::fs::read(&p).unwrap(), b"old");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "a temporary file was left");
+        write_file_atomic_with(&p, |w| w.write_all(&big)).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), big);
     }
 }

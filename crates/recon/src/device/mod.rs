@@ -15,6 +15,7 @@
 mod compose;
 mod densify;
 mod kernels;
+mod ledger;
 mod loss;
 mod model;
 mod targets;
@@ -60,6 +61,8 @@ pub struct DeviceTrainer<'a> {
     density_time: (f64, usize),
     /// The background's no-go space (`actor_space`): its grid and bits on the device.
     space: Option<(crate::actor_space::SpaceGrid, CudaSlice<u32>)>,
+    /// The host's seconds per phase of `step`.
+    ledger: ledger::Ledger,
 }
 
 fn dev(e: DriverError) -> ReconError {
@@ -111,6 +114,7 @@ impl<'a> DeviceTrainer<'a> {
             segs,
             density_time: (0.0, 0),
             space,
+            ledger: ledger::Ledger::default(),
         })
     }
 
@@ -121,6 +125,11 @@ impl<'a> DeviceTrainer<'a> {
     /// Seconds spent so far in density control (clone, split, prune), and how many times.
     pub fn density_seconds(&self) -> (f64, usize) {
         self.density_time
+    }
+
+    /// The host's seconds per phase of `step` so far (`ledger`), for the log.
+    pub fn host_phases(&self) -> String {
+        self.ledger.summary()
     }
 
     /// Brings the device's model, moments and statistics to the host copy and returns it.
@@ -140,6 +149,7 @@ impl<'a> DeviceTrainer<'a> {
 
     /// Runs iteration `next_iteration` and advances it.
     pub fn step(&mut self) -> Result<StepReport, ReconError> {
+        self.ledger.start();
         let it = self.state.next_iteration;
         let vi = view_for(self.cfg.seed, &self.train_views, it);
         let view = &self.views[vi];
@@ -149,13 +159,17 @@ impl<'a> DeviceTrainer<'a> {
         self.segs.build(&s, &self.state.model, self.scene, &self.dm, view.time).map_err(cuda)?;
         let n_world = self.segs.world_rows();
         let w = self.gpu.world_inputs(&mut self.sess, n_world, degree).map_err(cuda)?;
+        self.ledger.lap(0);
         compose::compose(&self.k, &s, &self.dm, &self.segs, degree, w).map_err(dev)?;
+        self.ledger.lap(1);
         self.gpu.forward_resident(&mut self.sess, &view.cam, &opts).map_err(cuda)?;
+        self.ledger.lap(2);
         let t = self.targets[vi].as_ref().ok_or_else(|| ReconError::Input(format!("view {vi} is held out")))?;
         s.memset_zeros(&mut self.dm.sky_g).map_err(dev)?;
         let io = self.gpu.image_io(&mut self.sess).map_err(cuda)?;
         let sky = loss::SkyIn { res: self.state.model.sky.res, texels: &self.dm.sky, grad: &mut self.dm.sky_g };
         loss::launch(&self.k, &s, &mut self.scratch, io, &view.cam, t, sky, &self.cfg.loss).map_err(cuda)?;
+        self.ledger.lap(3);
         self.gpu.backward_resident(&mut self.sess).map_err(cuda)?;
         let gw = self.gpu.gradients_out(&mut self.sess).map_err(cuda)?;
         // SAFETY: `valid` holds the n_world rows of the last render; counts two values.
@@ -167,6 +181,7 @@ impl<'a> DeviceTrainer<'a> {
                 .launch(linear(n_world))
                 .map_err(dev)?;
         }
+        self.ledger.lap(4);
         let ex = compose::Extras {
             flat_weight: self.cfg.loss.flat as f32,
             counts: &self.scratch.counts,
@@ -175,17 +190,21 @@ impl<'a> DeviceTrainer<'a> {
             acc: &mut self.scratch.acc,
         };
         compose::scatter(&self.k, &s, &mut self.dm, &self.segs, degree, &gw, ex).map_err(dev)?;
+        self.ledger.lap(5);
         let mut acc = [0f32; loss::ACC_LEN];
         let mut counts = [0u32; 2];
         s.memcpy_dtoh(&self.scratch.acc, &mut acc).map_err(dev)?;
         s.memcpy_dtoh(&self.scratch.counts, &mut counts).map_err(dev)?;
+        self.ledger.lap(6);
         let (parts, mse) = loss::parts(&acc, &counts, view.width() * view.height(), t, &self.cfg.loss);
         let mean_lr = means_lr(&self.cfg.lr, self.extent, it, self.cfg.iterations);
         self.adam(mean_lr).map_err(dev)?;
         self.host_current = false;
+        self.ledger.lap(7);
         let n = it + 1;
         let densified = self.density_control(n)?;
         self.state.next_iteration = n;
+        self.ledger.lap(8);
         Ok(StepReport { loss: parts, psnr: crate::metrics::psnr_from_mse(mse), gaussians: self.dm.rows(), densified })
     }
 
