@@ -30,6 +30,39 @@ __device__ __forceinline__ Hot hot_of(const Proj& p) {
 
 #define BATCH 256
 
+// The backward's per-Gaussian sums over a warp. Reducing each of the G2N values alone took 5
+// shuffles apiece (65) and lane 0 then issued G2N atomics one after another. Recursive halving
+// instead: each round a lane keeps half of its values and sends the other half to the lane `o`
+// away, which sends back the matching half, so the values left halve while the lanes holding
+// each value's partial sum double; 5 rounds take 16 shuffles for 16 values (31 for 32). Lane l
+// then holds the warp's whole sum of value red_index(l) (the same pairing as a tree of
+// shfl_down, so the same sum bit for bit), and the G2N atomics go out together, one per lane.
+#define RED_P (G2N <= 16 ? 16 : 32)
+
+template <int H>
+__device__ __forceinline__ void halve(float* v, bool up, int o) {
+#pragma unroll
+    for (int i = 0; i < H; i++) {
+        float keep = up ? v[i + H] : v[i], send = up ? v[i] : v[i + H];
+        v[i] = keep + __shfl_xor_sync(0xffffffffu, send, o);
+    }
+}
+
+// Leaves in v[0] the warp's sum of value red_index(lane) of v[0..RED_P).
+__device__ __forceinline__ void spread_sum(float* v, int lane) {
+    halve<RED_P / 2>(v, lane & 16, 16);
+    halve<RED_P / 4>(v, lane & 8, 8);
+    halve<RED_P / 8>(v, lane & 4, 4);
+    halve<RED_P / 16>(v, lane & 2, 2);
+    if (RED_P == 32) halve<1>(v, lane & 1, 1);
+    else v[0] += __shfl_xor_sync(0xffffffffu, v[0], 1);
+}
+
+// Which value's sum lane `lane` holds after spread_sum, and whether it adds it (one lane of each
+// pair when RED_P is 16).
+__device__ __forceinline__ int red_index(int lane) { return RED_P == 32 ? lane : lane >> 1; }
+__device__ __forceinline__ bool red_owner(int lane) { return RED_P == 32 || (lane & 1) == 0; }
+
 extern "C" __global__ void __launch_bounds__(256) raster_forward(
     int width, int height, Opts o, const uint2* ranges, const unsigned* vals, const Proj* proj, const float* feats,
     float* out_rgb, float* out_alpha, float* out_depth, float* out_normal, float* out_feat, float* final_t,
@@ -122,7 +155,7 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
     float b_rgb[3] = {o.bg[0] * t_final, o.bg[1] * t_final, o.bg[2] * t_final}, b_n[3] = {0.0f, 0.0f, 0.0f},
           b_d = 0.0f;
     // Whether any pixel of this warp has a depth or normal gradient: when none has (an RGB-only
-    // loss), their terms are exactly zero, so the warp neither computes nor reduces them.
+    // loss), their terms are exactly zero, so the warp does not compute them (nor add them).
     bool geo = __any_sync(0xffffffffu, u_d != 0.0f || u_n[0] != 0.0f || u_n[1] != 0.0f || u_n[2] != 0.0f);
     if (tid == 0) max_last = 0;
     __syncthreads();
@@ -146,8 +179,9 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
             bool cl = false;
             bool hit = slot < my_last && alpha_at(hot_of(g), qx, qy, o.smooth, alpha, e, cl);
             if (!__any_sync(0xffffffffu, hit)) continue;
-            float v[G2N];
-            for (int k = 0; k < G2N; k++) v[k] = 0.0f;
+            float v[RED_P];
+#pragma unroll
+            for (int k = 0; k < RED_P; k++) v[k] = 0.0f;
             if (hit) {
                 float inv = 1.0f / (1.0f - alpha);
                 float ti = T * inv;
@@ -188,12 +222,9 @@ extern "C" __global__ void __launch_bounds__(256) raster_backward(
                 }
                 T = ti;
             }
-            for (int k = 0; k < G2N; k++) {
-                if (!geo && k >= 9 && k < 13) continue;
-                float s = v[k];
-                for (int off = 16; off > 0; off >>= 1) s += __shfl_down_sync(0xffffffffu, s, off);
-                if (lane == 0 && s != 0.0f) atomicAdd(&g2[(size_t)sid[j] * G2N + k], s);
-            }
+            spread_sum(v, lane);
+            int k = red_index(lane);
+            if (red_owner(lane) && k < G2N && v[0] != 0.0f) atomicAdd(&g2[(size_t)sid[j] * G2N + k], v[0]);
         }
         stop = start;
     }
