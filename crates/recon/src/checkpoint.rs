@@ -60,11 +60,10 @@ pub struct TrainState {
 }
 
 /// The checkpoint's bytes on their way to the file: each value little-endian, the CRC-32C
-/// running over everything written, in chunks (never the whole payload in memory).
+/// running over everything written, 8 KB at a time (never the whole payload in memory).
 struct Sink<'w> {
     w: &'w mut dyn Write,
     crc: u32,
-    chunk: Vec<u8>,
 }
 
 impl Sink<'_> {
@@ -74,13 +73,10 @@ impl Sink<'_> {
     }
 
     fn put(&mut self, v: &[f64]) -> std::io::Result<()> {
-        for part in v.chunks(8192) {
-            let mut chunk = std::mem::take(&mut self.chunk);
-            chunk.clear();
-            chunk.extend(part.iter().flat_map(|x| x.to_le_bytes()));
-            let r = self.bytes(&chunk);
-            self.chunk = chunk;
-            r?;
+        let mut buf = [0u8; 8192];
+        for part in v.chunks(buf.len() / 8) {
+            buf.chunks_exact_mut(8).zip(part).for_each(|(o, x)| o.copy_from_slice(&x.to_le_bytes()));
+            self.bytes(&buf[..8 * part.len()])?;
         }
         Ok(())
     }
@@ -118,7 +114,7 @@ pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), Recon
     };
     let hjson = serde_json::to_vec(&header).map_err(|e| ReconError::Input(e.to_string()))?;
     scene::write_file_atomic_with(path, |w| {
-        let mut out = Sink { w, crc: 0, chunk: Vec::new() };
+        let mut out = Sink { w, crc: 0 };
         out.bytes(MAGIC)?;
         out.bytes(&(hjson.len() as u64).to_le_bytes())?;
         out.bytes(&hjson)?;
