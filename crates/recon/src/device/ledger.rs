@@ -7,8 +7,21 @@
 use std::time::Instant;
 
 /// The phases of `DeviceTrainer::step`, in order.
-pub const PHASES: [&str; 9] =
-    ["build", "compose", "forward", "loss", "backward", "scatter", "readback", "adam", "density"];
+#[derive(Clone, Copy)]
+pub enum Phase {
+    Build,
+    Compose,
+    Forward,
+    Loss,
+    Backward,
+    Scatter,
+    Readback,
+    Adam,
+    Density,
+}
+
+/// The phases' names, in `Phase`'s order.
+const PHASES: [&str; 9] = ["build", "compose", "forward", "loss", "backward", "scatter", "readback", "adam", "density"];
 
 /// Seconds per phase since the trainer started.
 pub struct Ledger {
@@ -28,10 +41,10 @@ impl Ledger {
         self.at = Instant::now();
     }
 
-    /// Books the time since the last lap to phase `k`.
-    pub fn lap(&mut self, k: usize) {
+    /// Books the time since the last lap to `phase`.
+    pub fn lap(&mut self, phase: Phase) {
         let now = Instant::now();
-        self.seconds[k] += (now - self.at).as_secs_f64();
+        self.seconds[phase as usize] += (now - self.at).as_secs_f64();
         self.at = now;
     }
 

@@ -28,6 +28,7 @@ use crate::schedule::density_step;
 use crate::train::{train_views, view_for, StepReport};
 use crate::ReconError;
 use kernels::{linear, Kernels};
+use ledger::Phase;
 use model::DeviceModel;
 use scene::Scene;
 use splat::render::RenderOptions;
@@ -159,17 +160,17 @@ impl<'a> DeviceTrainer<'a> {
         self.segs.build(&s, &self.state.model, self.scene, &self.dm, view.time).map_err(cuda)?;
         let n_world = self.segs.world_rows();
         let w = self.gpu.world_inputs(&mut self.sess, n_world, degree).map_err(cuda)?;
-        self.ledger.lap(0);
+        self.ledger.lap(Phase::Build);
         compose::compose(&self.k, &s, &self.dm, &self.segs, degree, w).map_err(dev)?;
-        self.ledger.lap(1);
+        self.ledger.lap(Phase::Compose);
         self.gpu.forward_resident(&mut self.sess, &view.cam, &opts).map_err(cuda)?;
-        self.ledger.lap(2);
+        self.ledger.lap(Phase::Forward);
         let t = self.targets[vi].as_ref().ok_or_else(|| ReconError::Input(format!("view {vi} is held out")))?;
         s.memset_zeros(&mut self.dm.sky_g).map_err(dev)?;
         let io = self.gpu.image_io(&mut self.sess).map_err(cuda)?;
         let sky = loss::SkyIn { res: self.state.model.sky.res, texels: &self.dm.sky, grad: &mut self.dm.sky_g };
         loss::launch(&self.k, &s, &mut self.scratch, io, &view.cam, t, sky, &self.cfg.loss).map_err(cuda)?;
-        self.ledger.lap(3);
+        self.ledger.lap(Phase::Loss);
         self.gpu.backward_resident(&mut self.sess).map_err(cuda)?;
         let gw = self.gpu.gradients_out(&mut self.sess).map_err(cuda)?;
         // SAFETY: `valid` holds the n_world rows of the last render; counts two values.
@@ -181,7 +182,7 @@ impl<'a> DeviceTrainer<'a> {
                 .launch(linear(n_world))
                 .map_err(dev)?;
         }
-        self.ledger.lap(4);
+        self.ledger.lap(Phase::Backward);
         let ex = compose::Extras {
             flat_weight: self.cfg.loss.flat as f32,
             counts: &self.scratch.counts,
@@ -190,21 +191,21 @@ impl<'a> DeviceTrainer<'a> {
             acc: &mut self.scratch.acc,
         };
         compose::scatter(&self.k, &s, &mut self.dm, &self.segs, degree, &gw, ex).map_err(dev)?;
-        self.ledger.lap(5);
+        self.ledger.lap(Phase::Scatter);
         let mut acc = [0f32; loss::ACC_LEN];
         let mut counts = [0u32; 2];
         s.memcpy_dtoh(&self.scratch.acc, &mut acc).map_err(dev)?;
         s.memcpy_dtoh(&self.scratch.counts, &mut counts).map_err(dev)?;
-        self.ledger.lap(6);
+        self.ledger.lap(Phase::Readback);
         let (parts, mse) = loss::parts(&acc, &counts, view.width() * view.height(), t, &self.cfg.loss);
         let mean_lr = means_lr(&self.cfg.lr, self.extent, it, self.cfg.iterations);
         self.adam(mean_lr).map_err(dev)?;
         self.host_current = false;
-        self.ledger.lap(7);
+        self.ledger.lap(Phase::Adam);
         let n = it + 1;
         let densified = self.density_control(n)?;
         self.state.next_iteration = n;
-        self.ledger.lap(8);
+        self.ledger.lap(Phase::Density);
         Ok(StepReport { loss: parts, psnr: crate::metrics::psnr_from_mse(mse), gaussians: self.dm.rows(), densified })
     }
 
