@@ -1,6 +1,6 @@
 //! The kernel launches. Forward: project every Gaussian and count its tiles; order the Gaussians
-//! by depth and scan their counts in that order (`sort`); emit one `(tile << 32 | depth bits,
-//! index)` pair per tile overlap, depth-ordered; sort the pairs by their tile bits (`sort`); find
+//! by depth and scan their counts in that order (`sort`); emit one `(tile, index)` pair per tile
+//! overlap, depth-ordered; sort the pairs by tile (`sort`); find
 //! each tile's range; rasterise. Backward: zero the screen-space accumulators, rasterise back to
 //! front (warp-reduced atomics per Gaussian), then the per-Gaussian chain rule. The one host round trip is the intersection count.
 
@@ -148,7 +148,6 @@ impl Gpu {
         unsafe {
             s.launch_builder(&k.emit_keys)
                 .arg(&n32)
-                .arg(&b.proj)
                 .arg(&b.order[b.order_at])
                 .arg(&b.sorted_counts)
                 .arg(&b.offsets)
@@ -161,7 +160,7 @@ impl Gpu {
         let tile_bits = usize::BITS - (tiles.max(2) - 1).leading_zeros();
         sh.sorted = if m > 0 {
             let Buffers { keys, vals, hist, hist_scan, scan_sums, .. } = b;
-            self.sort(&k, keys, vals, hist, hist_scan, scan_sums, m, 32..32 + tile_bits)?
+            self.sort(&k, keys, vals, hist, hist_scan, scan_sums, m, 0..tile_bits)?
         } else {
             0
         };

@@ -1,9 +1,10 @@
 //! The device sorts: an exclusive scan (1,024 values a block, block totals scanned recursively)
-//! and a stable LSD radix sort of (u64 key, u32 value) pairs, 8 bits a pass (`kernels/sort.cu`).
+//! and a stable LSD radix sort of (u32 key, u32 value) pairs, 8 bits a pass (`kernels/sort.cu`).
 //! The forward pass sorts twice: the Gaussians by depth (`depth_order`, 4 passes over N), then
-//! the tile pairs, emitted in that order, by their tile bits alone (2 passes over M up to 65,536
-//! tiles); stability makes the result the (tile, depth, index) order of one sort of the whole key
-//! in a third of the passes over M.
+//! the tile pairs, emitted in that order, by their tile index alone (2 passes over M up to 65,536
+//! tiles); stability makes the result the (tile, depth, index) order of one sort of a 64-bit
+//! (tile, depth) key, in a third of the passes over M with keys half the size.
+//! `sort_pairs` runs the sort alone on host data, for its test against a plain stable sort.
 
 use crate::device::{Gpu, Kernels};
 use crate::pipeline::linear;
@@ -54,7 +55,7 @@ impl Gpu {
     pub(crate) fn sort(
         &self,
         k: &Kernels,
-        keys: &mut [CudaSlice<u64>; 2],
+        keys: &mut [CudaSlice<u32>; 2],
         vals: &mut [CudaSlice<u32>; 2],
         hist: &mut CudaSlice<u32>,
         hist_scan: &mut CudaSlice<u32>,
@@ -95,6 +96,7 @@ impl Gpu {
                     .arg(vout)
                     .arg(&sh)
                     .arg(&nb32)
+                    .arg(&*hist)
                     .arg(&*hist_scan)
                     .launch(cfg)
             }?;
@@ -138,5 +140,32 @@ impl Gpu {
         self.scan(k, &b.sorted_counts, &mut offsets, n, &mut b.scan_sums, 0)?;
         b.offsets = offsets;
         Ok(())
+    }
+
+    /// Sorts `(keys[i], vals[i])` by bits `bits` of the key on the device, stably, and returns
+    /// the pairs in their sorted order (the sort the forward pass runs, on host data).
+    pub fn sort_pairs(
+        &self,
+        keys: &[u32],
+        vals: &[u32],
+        bits: std::ops::Range<u32>,
+    ) -> Result<(Vec<u32>, Vec<u32>), CudaError> {
+        if keys.len() != vals.len() || bits.end > 32 || !bits.start.is_multiple_of(8) || !bits.end.is_multiple_of(8) {
+            return Err(CudaError::Input(format!(
+                "sort_pairs: {} keys, {} values, bits {bits:?} (expected equal lengths, bits within 0..32 on 8-bit digit boundaries)",
+                keys.len(),
+                vals.len()
+            )));
+        }
+        let (m, s) = (keys.len(), &self.stream);
+        if m == 0 {
+            return Ok((Vec::new(), Vec::new()));
+        }
+        let k = self.kernels(0)?;
+        let mut kb = [s.clone_htod(keys)?, s.alloc_zeros(m)?];
+        let mut vb = [s.clone_htod(vals)?, s.alloc_zeros(m)?];
+        let (mut hist, mut hist_scan, mut sums) = (s.alloc_zeros(1)?, s.alloc_zeros(1)?, Vec::new());
+        let at = self.sort(&k, &mut kb, &mut vb, &mut hist, &mut hist_scan, &mut sums, m, bits)?;
+        Ok((s.clone_dtoh(&kb[at])?, s.clone_dtoh(&vb[at])?))
     }
 }

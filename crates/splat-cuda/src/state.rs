@@ -43,12 +43,12 @@ pub(crate) struct Buffers {
     pub total: CudaSlice<u32>,
     // The depth sort of the Gaussians (N, ping-pong), its result (`order`, which of the two) and
     // the tile counts in that order.
-    pub depth_keys: [CudaSlice<u64>; 2],
+    pub depth_keys: [CudaSlice<u32>; 2],
     pub order: [CudaSlice<u32>; 2],
     pub order_at: usize,
     pub sorted_counts: CudaSlice<u32>,
     // Keys and values, twice for the sort's ping-pong (M), and its histograms.
-    pub keys: [CudaSlice<u64>; 2],
+    pub keys: [CudaSlice<u32>; 2],
     pub vals: [CudaSlice<u32>; 2],
     pub hist: CudaSlice<u32>,
     pub hist_scan: CudaSlice<u32>,

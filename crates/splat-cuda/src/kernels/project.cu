@@ -235,11 +235,10 @@ extern "C" __global__ void project_kernel(int n, const float* means, const float
 
 // The depth sort's pairs: every Gaussian's depth bits (positive floats order as their bits) and
 // its index; those that cover no tile sort last.
-extern "C" __global__ void depth_keys(int n, const Proj* proj, const unsigned* counts, unsigned long long* keys,
-                                      unsigned* vals) {
+extern "C" __global__ void depth_keys(int n, const Proj* proj, const unsigned* counts, unsigned* keys, unsigned* vals) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    keys[i] = counts[i] == 0 ? 0xffffffffull : (unsigned long long)__float_as_uint(proj[i].depth);
+    keys[i] = counts[i] == 0 ? 0xffffffffu : __float_as_uint(proj[i].depth);
     vals[i] = (unsigned)i;
 }
 
@@ -249,31 +248,58 @@ extern "C" __global__ void gather_counts(int n, const unsigned* order, const uns
     if (j < n) out[j] = counts[order[j]];
 }
 
-// Writes one (tile << 32 | depth bits, index) pair per tile a Gaussian overlaps, the Gaussians in
-// depth order (`order`, ties by index; `counts` and `offsets` in that order too), so that a
-// stable sort by tile alone leaves each tile's pairs sorted by depth, then index.
-extern "C" __global__ void emit_keys(int n, const Proj* proj, const unsigned* order, const unsigned* counts,
-                                     const unsigned* offsets, const int4* rects, int tiles_x, unsigned long long* keys,
-                                     unsigned* vals) {
+// Writes one (tile, index) pair per tile a Gaussian overlaps, the Gaussians in depth order
+// (`order`, ties by index; `counts` and `offsets` in that order too), so that a stable sort by
+// tile leaves each tile's pairs sorted by depth, then index. A warp's 32 Gaussians own one
+// contiguous run of slots (the offsets are scanned in this order), so the warp writes that run
+// together, lane l taking slot start + l, + 32 + l, ...: every store is coalesced, however many
+// tiles each Gaussian covers. A slot's Gaussian is the last of the 32 whose offset is at most the
+// slot (a binary search over the lanes with shuffles); its tile follows from the slot's place in
+// the Gaussian's tile rectangle, row by row.
+extern "C" __global__ void emit_keys(int n, const unsigned* order, const unsigned* counts, const unsigned* offsets,
+                                     const int4* rects, int tiles_x, unsigned* keys, unsigned* vals) {
     int j = blockIdx.x * blockDim.x + threadIdx.x;
-    if (j >= n || counts[j] == 0) return;
-    unsigned i = order[j];
-    int4 r = rects[i];
-    unsigned long long depth = (unsigned long long)__float_as_uint(proj[i].depth);
-    unsigned o = offsets[j];
-    for (int y = r.y; y <= r.w; y++)
-        for (int x = r.x; x <= r.z; x++) {
-            keys[o] = ((unsigned long long)(y * tiles_x + x) << 32) | depth;
-            vals[o] = i;
-            o++;
+    int lane = threadIdx.x & 31;
+    unsigned c = j < n ? counts[j] : 0u;
+    unsigned o = j < n ? offsets[j] : 0xffffffffu;  // past the end: never a slot's owner
+    unsigned idx = 0;
+    int x0 = 0, y0 = 0, w = 1;
+    if (c > 0) {
+        idx = order[j];
+        int4 r = rects[idx];
+        x0 = r.x;
+        y0 = r.y;
+        w = r.z - r.x + 1;
+    }
+    unsigned end = c > 0 ? o + c : 0u;
+    for (int off = 16; off > 0; off >>= 1) end = max(end, __shfl_xor_sync(0xffffffffu, end, off));
+    unsigned first = __shfl_sync(0xffffffffu, o, 0);
+    if (end == 0u) return;  // the whole warp: no Gaussian of it covers a tile
+    for (unsigned s0 = first; s0 < end; s0 += 32) {
+        unsigned s = s0 + lane;
+        int g = 0;
+        for (int step = 16; step > 0; step >>= 1) {
+            unsigned og = __shfl_sync(0xffffffffu, o, g + step);
+            if (og <= s) g += step;
         }
+        unsigned og = __shfl_sync(0xffffffffu, o, g);
+        unsigned ig = __shfl_sync(0xffffffffu, idx, g);
+        int xg = __shfl_sync(0xffffffffu, x0, g);
+        int yg = __shfl_sync(0xffffffffu, y0, g);
+        int wg = __shfl_sync(0xffffffffu, w, g);
+        if (s < end) {
+            unsigned local = s - og;
+            keys[s] = (unsigned)(yg + (int)(local / (unsigned)wg)) * (unsigned)tiles_x + (unsigned)(xg + (int)(local % (unsigned)wg));
+            vals[s] = ig;
+        }
+    }
 }
 
 // Per tile, the [start, end) of its entries in the sorted keys.
-extern "C" __global__ void tile_ranges(unsigned m, const unsigned long long* keys, uint2* ranges) {
+extern "C" __global__ void tile_ranges(unsigned m, const unsigned* keys, uint2* ranges) {
     unsigned i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= m) return;
-    unsigned t = (unsigned)(keys[i] >> 32);
-    if (i == 0 || (unsigned)(keys[i - 1] >> 32) != t) ranges[t].x = i;
-    if (i == m - 1 || (unsigned)(keys[i + 1] >> 32) != t) ranges[t].y = i + 1;
+    unsigned t = keys[i];
+    if (i == 0 || keys[i - 1] != t) ranges[t].x = i;
+    if (i == m - 1 || keys[i + 1] != t) ranges[t].y = i + 1;
 }
