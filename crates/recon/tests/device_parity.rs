@@ -100,7 +100,8 @@ fn gpu(what: &str) -> Option<Arc<splat_cuda::Gpu>> {
     }
 }
 
-/// The small synthetic street with priors and its initial state.
+/// The small synthetic street with priors and its initial state; 150x90, so the 16-pixel tiles of
+/// the rasterizer and the SSIM kernels are cut at the right and bottom edges.
 struct Street {
     _dir: tempfile::TempDir,
     scene: scene::Scene,
@@ -112,7 +113,7 @@ struct Street {
 fn street(cfg: &TrainConfig) -> Street {
     let dir = tempfile::tempdir().unwrap();
     let scene_dir = dir.path().join("scene");
-    let sc = synth::SynthConfig { frames: 8, cameras: 2, width: 160, height: 96, seed: 5, ..Default::default() };
+    let sc = synth::SynthConfig { frames: 8, cameras: 2, width: 150, height: 90, seed: 5, ..Default::default() };
     synth::synthesize(&sc, &scene_dir, &mut |_, _| {}).expect("synthetic scene");
     let none = |_: &recon::data::View| Ok(None);
     let (scene, mut views) = recon::session::prepare(&scene_dir, cfg, &none).unwrap();

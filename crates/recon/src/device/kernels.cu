@@ -3,10 +3,6 @@
 // back from world-frame gradients to each model's parameters (with the flattening term and the
 // density statistics), and Adam. Every formula mirrors the f64 host code it names, in f32.
 
-#define RADIUS 5
-#define SSIM_C1 0.0001f
-#define SSIM_C2 0.0009f
-
 // camera_from_world rotation (rows) and pinhole intrinsics.
 struct CamK {
     float r[9];
@@ -22,10 +18,6 @@ struct Xf {
     float t[3];
     float c, s;
     float m[256];
-};
-
-struct Win {
-    float w[2 * RADIUS + 1];
 };
 
 __device__ __forceinline__ void warp_add(float* dst, float v) {
@@ -225,11 +217,10 @@ __device__ void pixel_taps(const CamK& cam, int i, int res, int* idx, float* w) 
 // acc: 0 sum |out - target|, 1 sum (out - target)^2, 2 sum SSIM map (all channels), 3 depth,
 // 4 normal, 5 geo, 6 flattening (sum of the smallest scale).
 
-// Composite with the sky, L1 and its gradient, and the 15 SSIM input maps
-// (per channel: x, y, x^2, y^2, xy).
+// Composite with the sky, L1 and its gradient (SSIM: ssim.cu).
 extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* sky, const float* rgb,
                                     const float* alpha, const float* target, float w_l1, float* out,
-                                    float* g_out, float* maps, float* acc) {
+                                    float* g_out, float* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l1 = 0.0f, sq = 0.0f;
     if (i < p) {
@@ -246,70 +237,10 @@ extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* s
             sq += d * d;
             out[3 * i + c] = x;
             g_out[3 * i + c] = w_l1 * copysignf(1.0f, d);
-            float* mc = maps + (size_t)c * 5 * p;
-            mc[i] = x;
-            mc[p + i] = y;
-            mc[2 * p + i] = x * x;
-            mc[3 * p + i] = y * y;
-            mc[4 * p + i] = x * y;
         }
     }
     warp_add(&acc[0], l1);
     warp_add(&acc[1], sq);
-}
-
-// Separable Gaussian window with zero padding (recon::ssim::blur), over `nmaps` maps.
-extern "C" __global__ void blur_h(int nmaps, int width, int height, Win win, const float* src, float* dst) {
-    size_t p = (size_t)width * height;
-    size_t g = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (g >= p * nmaps) return;
-    size_t base = g - g % p;
-    int i = (int)(g % p), x = i % width, y = i / width;
-    float s = 0.0f;
-    for (int k = 0; k <= 2 * RADIUS; k++) {
-        int xx = x + k - RADIUS;
-        if (xx >= 0 && xx < width) s += win.w[k] * src[base + (size_t)y * width + xx];
-    }
-    dst[g] = s;
-}
-
-extern "C" __global__ void blur_v(int nmaps, int width, int height, Win win, const float* src, float* dst) {
-    size_t p = (size_t)width * height;
-    size_t g = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (g >= p * nmaps) return;
-    size_t base = g - g % p;
-    int i = (int)(g % p), x = i % width, y = i / width;
-    float s = 0.0f;
-    for (int k = 0; k <= 2 * RADIUS; k++) {
-        int yy = y + k - RADIUS;
-        if (yy >= 0 && yy < height) s += win.w[k] * src[base + (size_t)yy * width + x];
-    }
-    dst[g] = s;
-}
-
-// recon::ssim::ssim_channel's map and its three partial derivatives (9 maps: per channel d_mu,
-// d_xx, d_xy, each divided by the pixel count).
-extern "C" __global__ void ssim_terms(int p, const float* blurred, float* terms, float* acc) {
-    int i = blockIdx.x * blockDim.x + threadIdx.x;
-    float ssum = 0.0f;
-    if (i < p) {
-        float inv_n = 1.0f / (float)p;
-        for (int c = 0; c < 3; c++) {
-            const float* b = blurred + (size_t)c * 5 * p;
-            float mx = b[i], my = b[p + i], exx = b[2 * p + i], eyy = b[3 * p + i], exy = b[4 * p + i];
-            float a1 = 2.0f * mx * my + SSIM_C1;
-            float a2 = 2.0f * (exy - mx * my) + SSIM_C2;
-            float b1 = mx * mx + my * my + SSIM_C1;
-            float b2 = (exx - mx * mx) + (eyy - my * my) + SSIM_C2;
-            float s = a1 * a2 / (b1 * b2);
-            ssum += s;
-            float* t = terms + (size_t)c * 3 * p;
-            t[i] = inv_n * (2.0f * my * (a2 - a1) / (b1 * b2) - 2.0f * mx * s * (1.0f / b1 - 1.0f / b2));
-            t[p + i] = inv_n * (-s / b2);
-            t[2 * p + i] = inv_n * (2.0f * a1 / (b1 * b2));
-        }
-    }
-    warp_add(&acc[2], ssum);
 }
 
 // The photometric gradient on the composite, then through the composite to RGB, alpha and the

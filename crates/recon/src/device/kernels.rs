@@ -1,6 +1,6 @@
-//! The trainer's kernels (`kernels.cu`, and `densify.cu` for density control), compiled once per
-//! GPU with the rasterizer's NVRTC settings, and the plain-data arguments they take (`#[repr(C)]`
-//! twins of the CUDA structs).
+//! The trainer's kernels (`kernels.cu`, `ssim.cu` after it, and `densify.cu` for density
+//! control), compiled once per GPU with the rasterizer's NVRTC settings, and the plain-data
+//! arguments they take (`#[repr(C)]` twins of the CUDA structs).
 
 use crate::ReconError;
 use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig, ValidAsZeroBits};
@@ -13,9 +13,8 @@ pub(crate) struct Kernels {
     pub scatter_sh: CudaFunction,
     pub count_valid: CudaFunction,
     pub photo_l1: CudaFunction,
-    pub blur_h: CudaFunction,
-    pub blur_v: CudaFunction,
-    pub ssim_terms: CudaFunction,
+    pub ssim_forward: CudaFunction,
+    pub blur_maps: CudaFunction,
     pub photo_grad: CudaFunction,
     pub depth_loss: CudaFunction,
     pub normal_unit: CudaFunction,
@@ -31,9 +30,14 @@ pub(crate) struct Kernels {
     pub opacity_cap: CudaFunction,
 }
 
+/// The trainer's kernel source: `ssim.cu` uses `kernels.cu`'s helpers, so it follows it.
+fn trainer_source() -> String {
+    [include_str!("kernels.cu"), include_str!("ssim.cu")].concat()
+}
+
 impl Kernels {
     pub fn compile(gpu: &Gpu) -> Result<Kernels, ReconError> {
-        let m = gpu.compile_module(include_str!("kernels.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
+        let m = gpu.compile_module(&trainer_source()).map_err(|e| ReconError::Device(e.to_string()))?;
         let f = |name: &str| m.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
         let dm = gpu.compile_module(include_str!("densify.cu")).map_err(|e| ReconError::Device(e.to_string()))?;
         let fd = |name: &str| dm.load_function(name).map_err(|e| ReconError::Device(format!("kernel {name}: {e}")));
@@ -44,9 +48,8 @@ impl Kernels {
             scatter_sh: f("scatter_sh")?,
             count_valid: f("count_valid")?,
             photo_l1: f("photo_l1")?,
-            blur_h: f("blur_h")?,
-            blur_v: f("blur_v")?,
-            ssim_terms: f("ssim_terms")?,
+            ssim_forward: f("ssim_forward")?,
+            blur_maps: f("blur_maps")?,
             photo_grad: f("photo_grad")?,
             depth_loss: f("depth_loss")?,
             normal_unit: f("normal_unit")?,
@@ -171,8 +174,10 @@ mod tests {
     /// needed), so a compile error shows before a device run.
     #[test]
     fn trainer_kernels_compile_where_nvrtc_is_present() {
-        for (name, src) in [("kernels.cu", include_str!("kernels.cu")), ("densify.cu", include_str!("densify.cu"))] {
-            match splat_cuda::check_source(src, "sm_90") {
+        for (name, src) in
+            [("kernels.cu + ssim.cu", super::trainer_source()), ("densify.cu", include_str!("densify.cu").into())]
+        {
+            match splat_cuda::check_source(&src, "sm_90") {
                 Ok(true) => {}
                 Ok(false) => return println!("skipped: no NVRTC library on this machine (LD_LIBRARY_PATH)"),
                 Err(e) => panic!("{name}: {e}"),

@@ -6,7 +6,7 @@
 use super::kernels::{linear, CamK, Kernels, Win};
 use super::targets::ViewTargets;
 use crate::loss::{LossParts, LossWeights};
-use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, PushKernelArg};
+use splat_cuda::cudarc::driver::{CudaSlice, CudaStream, DriverError, LaunchConfig, PushKernelArg};
 use splat_cuda::ImageIo;
 use splat_cuda::{grow, CudaError};
 use std::sync::Arc;
@@ -22,7 +22,6 @@ pub(crate) const COUNT_DRAWN: usize = 1;
 pub(crate) struct Scratch {
     pub out: CudaSlice<f32>,
     pub g_out: CudaSlice<f32>,
-    pub maps: CudaSlice<f32>,
     pub tmp: CudaSlice<f32>,
     pub terms: CudaSlice<f32>,
     pub unit: CudaSlice<f32>,
@@ -38,7 +37,6 @@ impl Scratch {
         Ok(Scratch {
             out: s.alloc_zeros(1)?,
             g_out: s.alloc_zeros(1)?,
-            maps: s.alloc_zeros(1)?,
             tmp: s.alloc_zeros(1)?,
             terms: s.alloc_zeros(1)?,
             unit: s.alloc_zeros(1)?,
@@ -54,8 +52,7 @@ impl Scratch {
         for (b, k) in [
             (&mut self.out, 3),
             (&mut self.g_out, 3),
-            (&mut self.maps, 15),
-            (&mut self.tmp, 15),
+            (&mut self.tmp, 9),
             (&mut self.terms, 9),
             (&mut self.unit, 4),
             (&mut self.nbar, 4),
@@ -109,17 +106,24 @@ pub(crate) fn launch(
             .arg(&w_l1)
             .arg(&mut sc.out)
             .arg(&mut sc.g_out)
-            .arg(&mut sc.maps)
             .arg(&mut sc.acc)
             .launch(linear(p))?;
-        blur(k, s, 15, width, height, &win, &mut sc.maps, &mut sc.tmp)?;
-        s.launch_builder(&k.ssim_terms)
-            .arg(&p32)
-            .arg(&sc.maps)
+        s.launch_builder(&k.ssim_forward)
+            .arg(&width)
+            .arg(&height)
+            .arg(&win)
+            .arg(&sc.out)
+            .arg(&t.rgb)
             .arg(&mut sc.terms)
             .arg(&mut sc.acc)
-            .launch(linear(p))?;
-        blur(k, s, 9, width, height, &win, &mut sc.terms, &mut sc.tmp)?;
+            .launch(tiles(cam, 1))?;
+        s.launch_builder(&k.blur_maps)
+            .arg(&width)
+            .arg(&height)
+            .arg(&win)
+            .arg(&sc.terms)
+            .arg(&mut sc.tmp)
+            .launch(tiles(cam, 9))?;
         let w_ssim = w.ssim as f32;
         s.launch_builder(&k.photo_grad)
             .arg(&p32)
@@ -129,7 +133,7 @@ pub(crate) fn launch(
             .arg(io.alpha)
             .arg(&sc.out)
             .arg(&t.rgb)
-            .arg(&sc.terms)
+            .arg(&sc.tmp)
             .arg(&w_ssim)
             .arg(&sc.g_out)
             .arg(&mut *io.up_rgb)
@@ -203,39 +207,13 @@ pub(crate) fn launch(
     Ok(())
 }
 
-/// Separable blur of `n` maps in `maps` (through `tmp`), result back in `maps`.
-#[allow(clippy::too_many_arguments)]
-fn blur(
-    k: &Kernels,
-    s: &Arc<CudaStream>,
-    n: i32,
-    width: i32,
-    height: i32,
-    win: &Win,
-    maps: &mut CudaSlice<f32>,
-    tmp: &mut CudaSlice<f32>,
-) -> Result<(), DriverError> {
-    let total = n as usize * (width * height) as usize;
-    // SAFETY: both buffers hold n maps of width x height.
-    unsafe {
-        s.launch_builder(&k.blur_h)
-            .arg(&n)
-            .arg(&width)
-            .arg(&height)
-            .arg(win)
-            .arg(&*maps)
-            .arg(&mut *tmp)
-            .launch(linear(total))?;
-        s.launch_builder(&k.blur_v)
-            .arg(&n)
-            .arg(&width)
-            .arg(&height)
-            .arg(win)
-            .arg(&*tmp)
-            .arg(&mut *maps)
-            .launch(linear(total))?;
+/// One block of 256 threads per 16x16 tile of the view (ssim.cu), `maps` deep.
+fn tiles(cam: &splat::Camera, maps: u32) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: (cam.width.div_ceil(16), cam.height.div_ceil(16), maps),
+        block_dim: (256, 1, 1),
+        shared_mem_bytes: 0,
     }
-    Ok(())
 }
 
 /// The loss parts from the device sums (`acc`, `counts` as read back) for a view of `p` pixels.
