@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Runs the CUDA parity tests and the rasterizer benchmark on the GPU machine (no Rust there):
 # the binaries are built here and carried in .device-bin/cuda/ (git-ignored), e.g.
-#   cargo test --release -p splat-cuda --no-run   (the rasterizer parity test executable)
+#   cargo test --release -p splat-cuda --no-run   (the rasterizer parity and device sort test executables)
 #   cargo test --release -p recon --test device_parity --no-run   (the device trainer's)
 #   cargo build --release -p carla-gs --no-default-features
-#   cp <parity executables> .device-bin/cuda/{parity,device_parity}; cp target/release/carla-gs .device-bin/cuda/
+#   cp <test executables> .device-bin/cuda/{parity,sort,device_parity}; cp target/release/carla-gs .device-bin/cuda/
 # then, on the device: bash .device-bin/cuda/gpu-parity.sh (a copy of this script).
 # Writes parity.log, bench.json and bench.log under $OUT (or ./gpu-out).
 set -uo pipefail
@@ -20,6 +20,8 @@ nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader ||
 status=0
 echo "== parity tests"
 "$bin/parity" --nocapture --test-threads=1 2>&1 | tee "$out/parity.log" || status=1
+echo "== device sort"
+"$bin/sort" --nocapture --test-threads=1 2>&1 | tee "$out/sort.log" || status=1
 echo "== device trainer parity"
 "$bin/device_parity" --nocapture --test-threads=1 2>&1 | tee "$out/device_parity.log" || status=1
 if [ "${SKIP_BENCH:-0}" != 1 ]; then
