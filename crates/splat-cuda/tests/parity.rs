@@ -19,18 +19,9 @@ use splat_cuda::{CudaError, Gpu, Session};
 mod boundaries;
 use boundaries::Flags;
 
-fn gpu(test: &str) -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => {
-            println!("{test}: running on {}", g.describe());
-            Some(g)
-        }
-        Err(e) => {
-            println!("SKIP {test}: {e}");
-            None
-        }
-    }
-}
+#[path = "common/gpu.rs"]
+mod common_gpu;
+use common_gpu::gpu;
 
 #[test]
 fn no_gpu_is_a_clean_error() {

@@ -7,20 +7,10 @@
 //! the test prints SKIP and the reason.
 
 use splat::random::XorShift;
-use splat_cuda::Gpu;
 
-fn gpu(test: &str) -> Option<Gpu> {
-    match Gpu::new() {
-        Ok(g) => {
-            println!("{test}: running on {}", g.describe());
-            Some(g)
-        }
-        Err(e) => {
-            println!("SKIP {test}: {e}");
-            None
-        }
-    }
-}
+#[path = "common/gpu.rs"]
+mod common_gpu;
+use common_gpu::gpu;
 
 fn mask(bits: &std::ops::Range<u32>) -> u32 {
     let width = bits.end - bits.start;
