@@ -289,7 +289,8 @@ extern "C" __global__ void emit_keys(int n, const unsigned* order, const unsigne
         int wg = __shfl_sync(0xffffffffu, w, g);
         if (s < end) {
             unsigned local = s - og;
-            keys[s] = (unsigned)(yg + (int)(local / (unsigned)wg)) * (unsigned)tiles_x + (unsigned)(xg + (int)(local % (unsigned)wg));
+            int ty = yg + (int)(local / (unsigned)wg), tx = xg + (int)(local % (unsigned)wg);
+            keys[s] = (unsigned)(ty * tiles_x + tx);
             vals[s] = ig;
         }
     }

@@ -1,6 +1,7 @@
 // Forward and backward rasterisation (splat::raster and splat::raster_backward, in f32): one
-// 16x16 block per tile, one thread per pixel, the tile's depth-sorted Gaussians staged through
-// shared memory in batches of 256. The alpha test is splat::tiles::alpha_at's; threads map to pixels by pixel_of.
+// 16x16 block per tile, one thread per pixel (placed by pixel_of), the tile's depth-sorted
+// Gaussians staged through shared memory in batches of 256. The alpha test is
+// splat::tiles::alpha_at's.
 
 struct Hot {
     float mean[2], conic[3], opacity, power_min, extent[2];
