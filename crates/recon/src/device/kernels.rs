@@ -1,6 +1,6 @@
-//! The trainer's kernels (`kernels.cu`, `ssim.cu` after it, and `densify.cu` for density
-//! control), compiled once per GPU with the rasterizer's NVRTC settings, and the plain-data
-//! arguments they take (`#[repr(C)]` twins of the CUDA structs).
+//! The trainer's kernels (`kernels.cu`, then `loss.cu` and `ssim.cu` after it, and `densify.cu`
+//! for density control), compiled once per GPU with the rasterizer's NVRTC settings, and the
+//! plain-data arguments they take (`#[repr(C)]` twins of the CUDA structs).
 
 use crate::ReconError;
 use splat_cuda::cudarc::driver::{CudaFunction, DeviceRepr, LaunchConfig, ValidAsZeroBits};
@@ -30,9 +30,10 @@ pub(crate) struct Kernels {
     pub opacity_cap: CudaFunction,
 }
 
-/// The trainer's kernel source: `ssim.cu` uses `kernels.cu`'s helpers, so it follows it.
+/// The trainer's kernel source: `loss.cu` and `ssim.cu` use `kernels.cu`'s helpers, so they
+/// follow it.
 fn trainer_source() -> String {
-    [include_str!("kernels.cu"), include_str!("ssim.cu")].concat()
+    [include_str!("kernels.cu"), include_str!("loss.cu"), include_str!("ssim.cu")].concat()
 }
 
 impl Kernels {
@@ -174,9 +175,10 @@ mod tests {
     /// needed), so a compile error shows before a device run.
     #[test]
     fn trainer_kernels_compile_where_nvrtc_is_present() {
-        for (name, src) in
-            [("kernels.cu + ssim.cu", super::trainer_source()), ("densify.cu", include_str!("densify.cu").into())]
-        {
+        for (name, src) in [
+            ("kernels.cu + loss.cu + ssim.cu", super::trainer_source()),
+            ("densify.cu", include_str!("densify.cu").into()),
+        ] {
             match splat_cuda::check_source(&src, "sm_90") {
                 Ok(true) => {}
                 Ok(false) => return println!("skipped: no NVRTC library on this machine (LD_LIBRARY_PATH)"),
