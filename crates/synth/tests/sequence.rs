@@ -11,16 +11,20 @@ use std::sync::OnceLock;
 use synth::geometry::Ray;
 use synth::{gt, raycast, Sequence, SynthConfig, SynthError};
 
-/// One scene shared by the tests of this file: 8 frames, all 5 cameras, 480 x 320 (the
-/// temporary directory lives as long as the test binary).
+/// One scene shared by the tests of this file: 8 frames, all 5 cameras, 480 x 320, made afresh
+/// by each run of this test binary in cargo's scratch folder for it (`CARGO_TARGET_TMPDIR`): a
+/// static is never dropped, so a `TempDir` here left 28 MB in /tmp behind every run.
 fn fixture() -> (&'static Path, &'static SynthConfig) {
-    static FIXTURE: OnceLock<(tempfile::TempDir, PathBuf, SynthConfig)> = OnceLock::new();
-    let (_, dir, cfg) = FIXTURE.get_or_init(|| {
-        let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path().join("scene");
+    static FIXTURE: OnceLock<(PathBuf, SynthConfig)> = OnceLock::new();
+    let (dir, cfg) = FIXTURE.get_or_init(|| {
+        let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("synth-sequence-fixture");
+        if root.exists() {
+            std::fs::remove_dir_all(&root).unwrap();
+        }
+        let dir = root.join("scene");
         let cfg = SynthConfig { frames: 8, cameras: 5, width: 480, height: 320, seed: 7, ..Default::default() };
         synth::synthesize(&cfg, &dir, &mut |_, _| {}).unwrap();
-        (tmp, dir, cfg)
+        (dir, cfg)
     });
     (dir, cfg)
 }
