@@ -11,10 +11,11 @@ use std::collections::HashMap;
 use std::ffi::CString;
 use std::sync::{Arc, Mutex};
 
-const SOURCE: [&str; 4] = [
+const SOURCE: [&str; 5] = [
     include_str!("kernels/project.cu"),
     include_str!("kernels/chain.cu"),
     include_str!("kernels/raster.cu"),
+    include_str!("kernels/raster_back.cu"),
     include_str!("kernels/sort.cu"),
 ];
 

@@ -85,6 +85,12 @@ pub(crate) fn linear(n: usize) -> LaunchConfig {
     LaunchConfig { grid_dim: (blocks(n, 256), 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
 }
 
+/// One thread per Gaussian in blocks of 128 (project.cu's ROW_THREADS: chain_kernel stages its
+/// warps' SH rows in shared memory).
+fn per_row(n: usize) -> LaunchConfig {
+    LaunchConfig { grid_dim: (blocks(n, 128), 1, 1), block_dim: (128, 1, 1), shared_mem_bytes: 0 }
+}
+
 impl Gpu {
     /// The forward pass over the model already in `b` (`sh.n` Gaussians).
     pub(crate) fn forward(
@@ -239,7 +245,7 @@ impl Gpu {
         let (w, h) = (sh.width as i32, sh.height as i32);
         let cfg = LaunchConfig {
             grid_dim: (sh.tiles_x as u32, sh.tiles_y as u32, 1),
-            block_dim: (TILE as u32, TILE as u32, 1),
+            block_dim: (TILE as u32, (TILE / 2) as u32, 1), // two pixels per thread
             shared_mem_bytes: 0,
         };
         // SAFETY: as in the forward pass; g2 holds n rows of 13 + nf.
@@ -283,7 +289,7 @@ impl Gpu {
                 .arg(&mut b.g_sh)
                 .arg(&mut b.g_feat)
                 .arg(&mut b.g_mean2d)
-                .launch(linear(n))
+                .launch(per_row(n))
         }?;
         Ok(())
     }

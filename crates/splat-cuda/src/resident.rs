@@ -75,6 +75,10 @@ impl Gpu {
         n: usize,
         sh_degree: usize,
     ) -> Result<WorldInputs<'a>, CudaError> {
+        if sh_degree > 3 {
+            // project.cu and chain.cu hold one row of at most 48 coefficients per Gaussian.
+            return Err(CudaError::Input(format!("SH degree {sh_degree}: the kernels take degree 3 at most")));
+        }
         self.kernels(0)?;
         if sess.bufs.is_none() {
             sess.bufs = Some(Buffers::new(&self.stream)?);
