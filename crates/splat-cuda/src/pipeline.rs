@@ -85,7 +85,7 @@ pub(crate) fn linear(n: usize) -> LaunchConfig {
     LaunchConfig { grid_dim: (blocks(n, 256), 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
 }
 
-/// One thread per Gaussian in blocks of 128 (project.cu's ROW_THREADS: chain_kernel stages its
+/// One thread per Gaussian in blocks of 128 (chain.cu's ROW_THREADS: chain_kernel stages its
 /// warps' SH rows in shared memory).
 fn per_row(n: usize) -> LaunchConfig {
     LaunchConfig { grid_dim: (blocks(n, 128), 1, 1), block_dim: (128, 1, 1), shared_mem_bytes: 0 }
