@@ -11,8 +11,9 @@ use std::collections::HashMap;
 use std::ffi::CString;
 use std::sync::{Arc, Mutex};
 
-const SOURCE: [&str; 5] = [
+const SOURCE: [&str; 6] = [
     include_str!("kernels/project.cu"),
+    include_str!("kernels/tiles.cu"),
     include_str!("kernels/chain.cu"),
     include_str!("kernels/raster.cu"),
     include_str!("kernels/raster_back.cu"),

@@ -149,8 +149,8 @@ impl Gpu {
             grow(s, &mut b.keys[i], m)?;
             grow(s, &mut b.vals[i], m)?;
         }
-        let tx = sh.tiles_x as i32;
-        // SAFETY: keys and values hold m = sum(counts) entries.
+        let (tx, smooth) = (sh.tiles_x as i32, opts.smooth as i32);
+        // SAFETY: keys and values hold m = sum(counts) entries; proj and rects n rows.
         unsafe {
             s.launch_builder(&k.emit_keys)
                 .arg(&n32)
@@ -158,6 +158,8 @@ impl Gpu {
                 .arg(&b.sorted_counts)
                 .arg(&b.offsets)
                 .arg(&b.rects)
+                .arg(&b.proj)
+                .arg(&smooth)
                 .arg(&tx)
                 .arg(&mut b.keys[0])
                 .arg(&mut b.vals[0])

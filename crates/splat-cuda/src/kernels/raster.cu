@@ -8,17 +8,23 @@ struct Hot {
     float mean[2], conic[3], opacity, power_min, extent[2];
 };
 
-__device__ __forceinline__ bool alpha_at(const Hot& h, float qx, float qy, int smooth, float& alpha, float& e,
-                                         bool& clamped) {
+// Straight-line code: every term is computed and the tests combined with `&` (no early returns),
+// so the compiler predicates instead of branching and reconverging around each test; with
+// SMOOTH a template parameter the smooth-mode tests are not in the other kernel at all. The same
+// decisions as splat::tiles::alpha_at, NaN included (each test is the negation of a rejection).
+template <bool SMOOTH>
+__device__ __forceinline__ bool alpha_at(const Hot& h, float qx, float qy, float& alpha, float& e, bool& clamped) {
     float dx = qx - h.mean[0], dy = qy - h.mean[1];
-    if (!smooth && (fabsf(dx) > h.extent[0] || fabsf(dy) > h.extent[1])) return false;
     float power = -0.5f * (h.conic[0] * dx * dx + h.conic[2] * dy * dy) - h.conic[1] * dx * dy;
-    if (power > 0.0f || (!smooth && power < h.power_min)) return false;
-    e = expf(power);
+    // The fast exponential (gsplat builds with --use_fast_math): 2 ulp and power's rounding, within
+    // the parity tests' slack of 1e-5 in ln(alpha).
+    e = __expf(power);
     float raw = h.opacity * e;
-    clamped = !smooth && raw > ALPHA_MAX;
+    clamped = !SMOOTH && raw > ALPHA_MAX;
     alpha = clamped ? ALPHA_MAX : raw;
-    return smooth || alpha >= ALPHA_MIN;
+    if (SMOOTH) return !(power > 0.0f);
+    return !(fabsf(dx) > h.extent[0]) & !(fabsf(dy) > h.extent[1]) & !(power > 0.0f) & !(power < h.power_min) &
+           (alpha >= ALPHA_MIN);
 }
 
 __device__ __forceinline__ Hot hot_of(const Proj& p) {
@@ -62,13 +68,16 @@ __device__ __forceinline__ void pixel_of(int tid, int& x, int& y) {
     y = (lane >> 3) | ((warp >> 1) << 2);
 }
 
-extern "C" __global__ void __launch_bounds__(256) raster_forward(
-    int width, int height, Opts o, const uint2* ranges, const unsigned* vals, const Proj* proj, const float* feats,
-    float* out_rgb, float* out_alpha, float* out_depth, float* out_normal, float* out_feat, float* final_t,
-    unsigned* last) {
-    __shared__ Proj sp[BATCH];
-    __shared__ unsigned sid[BATCH];
-    __shared__ unsigned char smask[BATCH];
+#define FORWARD_PARAMS                                                                                      \
+    int width, int height, Opts o, const uint2 *ranges, const unsigned *vals, const Proj *proj, const float *feats, \
+        float *out_rgb, float *out_alpha, float *out_depth, float *out_normal, float *out_feat, float *final_t,     \
+        unsigned *last
+#define FORWARD_ARGS \
+    width, height, o, ranges, vals, proj, feats, out_rgb, out_alpha, out_depth, out_normal, out_feat, final_t, last
+
+// One tile's forward pass; the kernel below picks SMOOTH from `o` and owns the shared memory.
+template <bool SMOOTH>
+__device__ __forceinline__ void forward_tile(FORWARD_PARAMS, Proj* sp, unsigned* sid, unsigned char* smask) {
     int tile = blockIdx.y * gridDim.x + blockIdx.x;
     int tid = threadIdx.y * TILE + threadIdx.x;
     int lx, ly;
@@ -91,7 +100,7 @@ extern "C" __global__ void __launch_bounds__(256) raster_forward(
             sid[tid] = id;
             Proj p = proj[id];
             sp[tid] = p;
-            smask[tid] = (unsigned char)warp_blocks<8, 4>(p, blockIdx.x * TILE, blockIdx.y * TILE, o.smooth);
+            smask[tid] = (unsigned char)warp_blocks<8, 4>(p, blockIdx.x * TILE, blockIdx.y * TILE, SMOOTH);
         }
         __syncthreads();
         unsigned cnt = min((unsigned)BATCH, range.y - start);
@@ -100,9 +109,9 @@ extern "C" __global__ void __launch_bounds__(256) raster_forward(
             const Proj& g = sp[j];
             float alpha, e;
             bool cl;
-            if (!alpha_at(hot_of(g), qx, qy, o.smooth, alpha, e, cl)) continue;
+            if (!alpha_at<SMOOTH>(hot_of(g), qx, qy, alpha, e, cl)) continue;
             float next = T * (1.0f - alpha);
-            if (!o.smooth && next < T_MIN) {
+            if (!SMOOTH && next < T_MIN) {
                 done = true;
                 break;
             }
@@ -128,4 +137,12 @@ extern "C" __global__ void __launch_bounds__(256) raster_forward(
     for (int c = 0; c < NF; c++) out_feat[(size_t)pix * NF + c] = fsum[c];
     final_t[pix] = T;
     last[pix] = my_last;
+}
+
+extern "C" __global__ void __launch_bounds__(256) raster_forward(FORWARD_PARAMS) {
+    __shared__ Proj sp[BATCH];
+    __shared__ unsigned sid[BATCH];
+    __shared__ unsigned char smask[BATCH];
+    if (o.smooth) forward_tile<true>(FORWARD_ARGS, sp, sid, smask);
+    else forward_tile<false>(FORWARD_ARGS, sp, sid, smask);
 }

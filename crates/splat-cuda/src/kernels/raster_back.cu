@@ -80,7 +80,7 @@ struct Px {
 // v[0..G2N) in the G2 row's layout, and steps the pixel's state past the Gaussian.
 __device__ __forceinline__ void hit_grads(Px& p, const Proj& g, float alpha, float e, bool cl, const float* fi,
                                           bool geo, float* v) {
-    float inv = 1.0f / (1.0f - alpha);
+    float inv = __fdividef(1.0f, 1.0f - alpha);  // 1 - alpha is in [0.01, 1]: no IEEE slow path needed
     float ti = p.T * inv;
     float w = alpha * ti;
     float vc[3];
@@ -123,14 +123,17 @@ __device__ __forceinline__ void hit_grads(Px& p, const Proj& g, float alpha, flo
     p.T = ti;
 }
 
-extern "C" __global__ void __launch_bounds__(BWD_THREADS) raster_backward(
-    int width, int height, Opts o, const uint2* ranges, const unsigned* vals, const Proj* proj, const float* feats,
-    const float* final_t, const unsigned* last, const float* up_rgb, const float* up_alpha, const float* up_depth,
-    const float* up_normal, const float* up_feat, float* g2) {
-    __shared__ Proj sp[BATCH];
-    __shared__ unsigned sid[BATCH];
-    __shared__ unsigned char smask[BATCH];
-    __shared__ unsigned max_last;
+#define BACKWARD_PARAMS                                                                                     \
+    int width, int height, Opts o, const uint2 *ranges, const unsigned *vals, const Proj *proj, const float *feats, \
+        const float *final_t, const unsigned *last, const float *up_rgb, const float *up_alpha,                     \
+        const float *up_depth, const float *up_normal, const float *up_feat, float *g2
+#define BACKWARD_ARGS \
+    width, height, o, ranges, vals, proj, feats, final_t, last, up_rgb, up_alpha, up_depth, up_normal, up_feat, g2
+
+// One tile's backward pass; the kernel below picks SMOOTH from `o` and owns the shared memory.
+template <bool SMOOTH>
+__device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigned* sid, unsigned char* smask,
+                                              unsigned& max_last) {
     int tile = blockIdx.y * gridDim.x + blockIdx.x;
     int tid = threadIdx.y * TILE + threadIdx.x;
     int lane = tid & 31;
@@ -185,7 +188,7 @@ extern "C" __global__ void __launch_bounds__(BWD_THREADS) raster_backward(
             sid[t] = id;
             Proj p = proj[id];
             sp[t] = p;
-            smask[t] = (unsigned char)warp_blocks<4, 8>(p, blockIdx.x * TILE, blockIdx.y * TILE, o.smooth);
+            smask[t] = (unsigned char)warp_blocks<4, 8>(p, blockIdx.x * TILE, blockIdx.y * TILE, SMOOTH);
         }
         __syncthreads();
         unsigned base = start - range.x;
@@ -196,9 +199,12 @@ extern "C" __global__ void __launch_bounds__(BWD_THREADS) raster_backward(
             unsigned slot = base + (unsigned)j;
             float alpha[2] = {0.0f, 0.0f}, e[2] = {0.0f, 0.0f};
             bool cl[2] = {false, false}, hit[2];
+            // Both pixels' tests in straight-line code (`&`, not `&&`): the Gaussian is read from
+            // shared memory once, and no branch has to reconverge.
+            Hot h = hot_of(g);
 #pragma unroll
             for (int k = 0; k < 2; k++)
-                hit[k] = slot < px[k].last && alpha_at(hot_of(g), px[k].qx, px[k].qy, o.smooth, alpha[k], e[k], cl[k]);
+                hit[k] = (slot < px[k].last) & alpha_at<SMOOTH>(h, px[k].qx, px[k].qy, alpha[k], e[k], cl[k]);
             unsigned hits = __ballot_sync(0xffffffffu, hit[0] || hit[1]);
             if (!hits) continue;
             float fi[NF > 0 ? NF : 1];
@@ -240,4 +246,13 @@ extern "C" __global__ void __launch_bounds__(BWD_THREADS) raster_backward(
         }
         stop = start;
     }
+}
+
+extern "C" __global__ void __launch_bounds__(BWD_THREADS) raster_backward(BACKWARD_PARAMS) {
+    __shared__ Proj sp[BATCH];
+    __shared__ unsigned sid[BATCH];
+    __shared__ unsigned char smask[BATCH];
+    __shared__ unsigned max_last;
+    if (o.smooth) backward_tile<true>(BACKWARD_ARGS, sp, sid, smask, max_last);
+    else backward_tile<false>(BACKWARD_ARGS, sp, sid, smask, max_last);
 }
