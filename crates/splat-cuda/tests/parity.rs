@@ -288,8 +288,8 @@ fn random_scenes_match_the_cpu_reference() {
             // spans (tiles.cu, row_span) leave out many tiles of each ellipse's bounding box and
             // run near its top and bottom. (Long thin ones, 30:1 on screen and 1 to 2 mm thick,
             // fail this test's 1e-4 at a few unflagged pixels with the kernels before the binning
-            // change too, the same pixel and error to four digits: not yet explained; BENCHMARKS,
-            // issue 30.)
+            // change too, the same pixel and error to four digits; likely the f32 rounding of an
+            // exponent whose terms are in the thousands: BENCHMARKS, issue 30.)
             let n = 150 + (r.uniform() * 350.0) as usize;
             let mut g = small_scene(n, degree, &mut r);
             for s in g.log_scales.iter_mut() {
