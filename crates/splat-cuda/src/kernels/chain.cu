@@ -181,16 +181,14 @@ __device__ __forceinline__ bool chain_one(int i, const float* means, const float
     return true;
 }
 
-// Copies the rows of the warp's lanes set in `lanes` between global rows (`first`: the warp's
-// first Gaussian) and shared `rows` (the warp's first row), a row per step, 32 lanes on
-// consecutive words.
-__device__ __forceinline__ void copy_rows(unsigned lanes, int lane, int kc3, float* glob, float* rows, bool in) {
+// Copies the rows of the warp's lanes set in `lanes` from `src` to `dst` (row r at r times each
+// side's stride: global rows are kc3 floats apart, shared ones ROW_STRIDE), a row per step, 32
+// lanes on consecutive words.
+__device__ __forceinline__ void copy_rows(unsigned lanes, int lane, int kc3, const float* src, int src_stride,
+                                          float* dst, int dst_stride) {
     for (; lanes; lanes &= lanes - 1) {
         int r = __ffs(lanes) - 1;
-        for (int e = lane; e < kc3; e += 32) {
-            if (in) rows[r * ROW_STRIDE + e] = glob[(size_t)r * kc3 + e];
-            else glob[(size_t)r * kc3 + e] = rows[r * ROW_STRIDE + e];
-        }
+        for (int e = lane; e < kc3; e += 32) dst[r * dst_stride + e] = src[r * src_stride + e];
     }
     __syncwarp();
 }
@@ -208,9 +206,9 @@ extern "C" __global__ void __launch_bounds__(ROW_THREADS) chain_kernel(
     if (i < n)
         for (int c = 0; c < NF; c++) g_feat[(size_t)i * NF + c] = g2[(size_t)i * G2N + 13 + c];
     bool active = i < n && chain_active(i, valid, g2);
-    copy_rows(__ballot_sync(0xffffffffu, active), lane, kc3, const_cast<float*>(sh) + first, warp_rows, true);
+    copy_rows(__ballot_sync(0xffffffffu, active), lane, kc3, sh + first, kc3, warp_rows, ROW_STRIDE);
     bool wrote = active && chain_one(i, means, log_scales, rots, logits, cam, o, g2, rows + threadIdx.x * ROW_STRIDE,
                                      g_means, g_log_scales, g_rots, g_logits, g_mean2d);
     __syncwarp();
-    copy_rows(__ballot_sync(0xffffffffu, wrote), lane, kc3, g_sh + first, warp_rows, false);
+    copy_rows(__ballot_sync(0xffffffffu, wrote), lane, kc3, warp_rows, ROW_STRIDE, g_sh + first, kc3);
 }

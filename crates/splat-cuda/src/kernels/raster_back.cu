@@ -215,9 +215,9 @@ __device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigne
 #pragma unroll
             for (int k = 0; k < 2; k++)
                 if (hit[k]) hit_grads(px[k], g, alpha[k], e[k], cl[k], fi, geo, v);
+            float* dst = g2 + (size_t)sid[j] * G2N;
             if (__popc(hits) <= SPARSE_HITS) {
                 if (hit[0] || hit[1]) {
-                    float* dst = g2 + (size_t)sid[j] * G2N;
 #pragma unroll
                     for (int k = 0; k < 9; k++)
                         if (v[k] != 0.0f) atomicAdd(dst + k, v[k]);
@@ -231,7 +231,6 @@ __device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigne
                 }
                 continue;
             }
-            float* dst = g2 + (size_t)sid[j] * G2N;
             if (NF == 0 && !geo) {
                 lean_sum(v, lane);
                 // lanes 4k add value k (k < 8), lane 1 value 8: one atomic instruction
