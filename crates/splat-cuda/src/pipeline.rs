@@ -77,18 +77,18 @@ pub(crate) fn opts_arg(o: &RenderOptions, sh: &Shape) -> OptsArg {
     }
 }
 
-fn blocks(n: usize, per: usize) -> u32 {
-    n.div_ceil(per).max(1) as u32
+/// chain.cu's ROW_THREADS: chain_kernel stages its warps' SH rows in shared memory sized for
+/// blocks of this many threads.
+const ROW_THREADS: usize = 128;
+
+/// One thread per item, in blocks of `per` threads.
+fn one_per_thread(n: usize, per: usize) -> LaunchConfig {
+    let grid = n.div_ceil(per).max(1) as u32;
+    LaunchConfig { grid_dim: (grid, 1, 1), block_dim: (per as u32, 1, 1), shared_mem_bytes: 0 }
 }
 
 pub(crate) fn linear(n: usize) -> LaunchConfig {
-    LaunchConfig { grid_dim: (blocks(n, 256), 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 }
-}
-
-/// One thread per Gaussian in blocks of 128 (chain.cu's ROW_THREADS: chain_kernel stages its
-/// warps' SH rows in shared memory).
-fn per_row(n: usize) -> LaunchConfig {
-    LaunchConfig { grid_dim: (blocks(n, 128), 1, 1), block_dim: (128, 1, 1), shared_mem_bytes: 0 }
+    one_per_thread(n, 256)
 }
 
 impl Gpu {
@@ -291,7 +291,7 @@ impl Gpu {
                 .arg(&mut b.g_sh)
                 .arg(&mut b.g_feat)
                 .arg(&mut b.g_mean2d)
-                .launch(per_row(n))
+                .launch(one_per_thread(n, ROW_THREADS))
         }?;
         Ok(())
     }
