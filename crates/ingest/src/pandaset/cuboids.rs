@@ -15,10 +15,9 @@
 //! * **Box frame**: `yaw` 0 means the length (`dimensions.y`) points along world +y
 //!   (`scene::frames::heading_from_pandaset_yaw`); size = (`dimensions.y`, `dimensions.x`,
 //!   `dimensions.z`) as length, width, height.
-//! * **Clock**: each box is seen at its capture time (`capture`: when the LiDAR sweep crossed
-//!   it), up to tens of milliseconds from its frame's time; the state holds the box carried to
-//!   the frame's time along its velocity, so that one clock holds for every box.
-//! * **Speed** from positions: central differences of consecutive states over their capture
+//! * **Clock**: each box is its object at its frame's time (the LiDAR's), as it is stored; the
+//!   module comment of `pandaset` says how that was established.
+//! * **Speed** from positions: central differences of consecutive states over their frames'
 //!   times (one-sided at a track's ends). **Motion label** from `attributes.object_motion`.
 
 use crate::error::IngestError;
@@ -190,13 +189,8 @@ pub struct CuboidReport {
 type Gathered<'a> = (BTreeMap<ObjectClass, usize>, BTreeMap<usize, &'a Cuboid>);
 
 /// One track per object over all frames (`frames[k]` = the cuboids of frame k; `times[k]` its
-/// time in seconds; `capture(k, centre)` the time a box of frame k centred at `centre` was
-/// seen), sorted by id.
-pub fn tracks(
-    frames: &[Vec<Cuboid>],
-    times: &[f64],
-    capture: &dyn Fn(usize, DVec3) -> f64,
-) -> (Vec<Track>, CuboidReport) {
+/// time in seconds), sorted by id.
+pub fn tracks(frames: &[Vec<Cuboid>], times: &[f64]) -> (Vec<Track>, CuboidReport) {
     let mut groups = Groups::default();
     let mut report = CuboidReport::default();
     for c in frames.iter().flatten() {
@@ -232,18 +226,15 @@ pub fn tracks(
         .map(|(id, (votes, states))| {
             let class = votes.into_iter().max_by_key(|(c, n)| (*n, std::cmp::Reverse(*c))).map(|(c, _)| c);
             let list: Vec<(usize, &Cuboid)> = states.into_iter().collect();
-            let seen: Vec<f64> = list.iter().map(|(f, c)| capture(*f, c.center)).collect();
             let states = (0..list.len())
                 .map(|k| {
                     let (f, c) = list[k];
-                    let velocity = velocity(&list, k, &seen);
-                    let center = c.center + velocity.unwrap_or(DVec3::ZERO) * (times[f] - seen[k]);
                     TrackState {
                         frame: f,
-                        center,
+                        center: c.center,
                         heading: c.heading,
                         size_lwh: c.size_lwh,
-                        velocity,
+                        velocity: velocity(&list, k, times),
                         valid: true,
                         motion: c.motion,
                     }
@@ -256,8 +247,8 @@ pub fn tracks(
 }
 
 /// World velocity at state `k` from the positions of its neighbours on consecutive frames
-/// (`seen[i]`: when `list[i]` was seen).
-fn velocity(list: &[(usize, &Cuboid)], k: usize, seen: &[f64]) -> Option<DVec3> {
+/// (`times[f]`: frame f's time).
+fn velocity(list: &[(usize, &Cuboid)], k: usize, times: &[f64]) -> Option<DVec3> {
     let adjacent = |a: usize, b: usize| list[b].0 == list[a].0 + 1;
     let (a, b) = match (k > 0 && adjacent(k - 1, k), k + 1 < list.len() && adjacent(k, k + 1)) {
         (true, true) => (k - 1, k + 1),
@@ -265,6 +256,6 @@ fn velocity(list: &[(usize, &Cuboid)], k: usize, seen: &[f64]) -> Option<DVec3> 
         (false, true) => (k, k + 1),
         (false, false) => return None,
     };
-    let dt = seen[b] - seen[a];
+    let dt = times[list[b].0] - times[list[a].0];
     (dt > 0.0).then(|| (list[b].1.center - list[a].1.center) / dt)
 }

@@ -18,14 +18,14 @@
 //!   translation-averaged `ego_from_world(t_image) * world_from_camera` over all frames; the
 //!   largest deviation of a logged camera centre from the rig's is logged and kept in the scene
 //!   name's log line (a rigid rig gives centimetres).
-//! * **Tracks** from the cuboids (`cuboids`), each box carried from the time the sweep saw it
-//!   (`capture`: read off the cameras' firing times) to its frame's time; **LiDAR** sweeps are
-//!   stored in the ego frame of their frame, as the scene format wants, their points on moving
-//!   boxes carried to the frame's time with the boxes (`capture::carry_points`).
+//! * **Tracks** from the cuboids (`cuboids`), each box at its frame's time; **LiDAR** sweeps are
+//!   stored in the ego frame of their frame, as the scene format wants. Boxes and sweeps hold one
+//!   instant, the frame's: a moving car's raw points fill its box best at the frame's time (the
+//!   shared-data test), and the images, taken 39 to 61 ms before it, show the car where its box
+//!   is at their own times (docs/pandaset.md, "When a box was seen").
 //!
 //! Every check happens before anything is copied; errors name the file and field.
 
-pub mod capture;
 pub mod cuboids;
 pub mod files;
 
@@ -279,14 +279,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         .map(|name| read_camera(&cam_root.join(name), name, &frames, &lidar_times))
         .collect::<Result<Vec<_>, _>>()?;
     let cuboid_frames = read_cuboids(dir, n)?;
-    let axes: Vec<(DVec3, &[f64])> =
-        cams.iter().map(|c| (c.camera.ego_from_camera.transform_vector(DVec3::X), c.times.as_slice())).collect();
-    let clock = capture::CaptureClock::from_cameras(&axes, &lidar_times);
-    tracing::info!(azimuth_deg_offset_ms = ?clock.table(), "LiDAR capture clock from the cameras' firing times");
-    let seen = |k: usize, centre: DVec3| {
-        lidar_times[k] + clock.offset_of(frames[k].world_from_ego.inverse().transform_point(centre))
-    };
-    let (tracks, report) = cuboids::tracks(&cuboid_frames, &lidar_times, &seen);
+    let (tracks, report) = cuboids::tracks(&cuboid_frames, &lidar_times);
     tracing::info!(
         records = report.records,
         sibling_duplicates = report.sibling_duplicates,
@@ -294,11 +287,6 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         lidar_above_road_m = lidar_above_road,
         "PandaSet cuboids read"
     );
-    let mut carried = 0;
-    for (k, pts) in &mut sweep_points {
-        carried += capture::carry_points(pts, &capture::carried_boxes(&tracks, *k, lidar_times[*k], &seen));
-    }
-    tracing::info!(points = carried, "sweep points on moving boxes carried to their frames' times");
     // Everything is checked: now copy.
     if let Some(root) = staging {
         for sub in [IMAGES_DIR, LIDAR_DIR] {
