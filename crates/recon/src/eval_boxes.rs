@@ -149,12 +149,31 @@ pub struct VehicleIou {
     /// The box hull's height in pixels at the camera's stored size.
     #[serde(default)]
     pub height_px: f64,
+    /// Pixels (at the view's size, where no nearer box covers it) of the rendered silhouette, of
+    /// the profile, and of both: whether an IoU falls short by spill or by holes.
+    #[serde(default)]
+    pub rendered_px: usize,
+    #[serde(default)]
+    pub profile_px: usize,
+    #[serde(default)]
+    pub profile_overlap_px: usize,
 }
 
 impl VehicleIou {
     /// Whether the view shows the vehicle clearly (see the module comment).
     pub fn clear(&self) -> bool {
         self.visible_fraction >= CLEAR_MIN_VISIBLE && self.height_px >= CLEAR_MIN_HEIGHT_PX
+    }
+
+    /// The share of the rendered silhouette inside the profile (below 1: spill outside it).
+    pub fn profile_precision(&self) -> Option<f64> {
+        (self.rendered_px > 0).then(|| self.profile_overlap_px as f64 / self.rendered_px as f64)
+    }
+
+    /// The share of the profile the rendered silhouette covers (below 1: holes or a car drawn
+    /// smaller or elsewhere).
+    pub fn profile_recall(&self) -> Option<f64> {
+        (self.profile_px > 0).then(|| self.profile_overlap_px as f64 / self.profile_px as f64)
     }
 }
 
@@ -186,7 +205,8 @@ pub fn moving_vehicle_iou<B: Backend>(
         let visible = |m: &mut Vec<bool>| m.iter_mut().zip(&hidden).for_each(|(x, h)| *x &= !*h);
         visible(&mut truth);
         visible(&mut profile);
-        let shown = truth.iter().filter(|x| **x).count();
+        let count = |m: &[bool]| m.iter().filter(|x| **x).count();
+        let shown = count(&truth);
         if shown < MIN_PIXELS {
             continue;
         }
@@ -208,6 +228,9 @@ pub fn moving_vehicle_iou<B: Backend>(
                 lidar_points: on_car.len(),
                 visible_fraction: (shown as f64 / area.max(1.0)).min(1.0),
                 height_px: height * stored_height / v.height() as f64,
+                rendered_px: count(&mask),
+                profile_px: count(&profile),
+                profile_overlap_px: mask.iter().zip(&profile).filter(|(a, b)| **a && **b).count(),
             });
         }
     }
@@ -279,8 +302,12 @@ mod tests {
     }
 
     #[test]
-    fn a_pair_is_clear_when_tall_and_mostly_visible() {
+    fn a_pair_is_clear_when_tall_and_mostly_visible_and_counts_its_pixels() {
         let pair = |visible_fraction, height_px| VehicleIou { visible_fraction, height_px, ..Default::default() };
+        // Precision and recall from the pixel counts; none without pixels.
+        let counted = VehicleIou { rendered_px: 80, profile_px: 100, profile_overlap_px: 60, ..Default::default() };
+        assert_eq!((counted.profile_precision(), counted.profile_recall()), (Some(0.75), Some(0.6)));
+        assert_eq!((pair(1.0, 30.0).profile_precision(), pair(1.0, 30.0).profile_recall()), (None, None));
         assert!(pair(0.5, 25.0).clear());
         assert!(!pair(0.49, 200.0).clear(), "more than half hidden or outside the image");
         assert!(!pair(1.0, 24.9).clear(), "too small to score");
