@@ -11,7 +11,7 @@
 set -euo pipefail
 bin="$1"; scene="$2"; out="$3"; dest="$4"
 mkdir -p "$out"
-if [ ! -f "$out/scene/priors/priors.json" ]; then rm -rf "$out/scene"; cp -r "$scene" "$out/scene"; "$bin" priors "$out/scene"; fi
+if [ ! -f "$out/scene/priors/priors.json" ]; then rm -rf "$out/scene"; cp -r "$scene" "$out/scene"; "$bin" priors "$out/scene" --force; fi
 # MODEL (environment): an already trained model to use instead of training one into <out>/model.
 [ -n "${MODEL:-}" ] && [ ! -e "$out/model" ] && ln -s "$(cd "$MODEL" && pwd)" "$out/model"
 [ -f "$out/model/model.json" ] || "$bin" train "$out/scene" --out "$out/model" --config configs/real-street-gpu.toml --device cuda
@@ -24,25 +24,27 @@ run_case() { # name, then run's arguments
 }
 # CASES (environment): which of the cases below to run, e.g. CASES="cut-in braking"; default all.
 want() { [ -z "${CASES:-}" ] || [[ " $CASES " == *" $1 "* ]]; }
-want cut-in && run_case cut-in --behavior sudden_cut_in --t0 3.5 --seed 1
-# The seeds are the attempt seeds `eval-cases --seed 0` gives these (scene, behaviour, t0); braking's
-# ego comes within 1 s of the stopped lead car only after the plan's end, so it is run over
-# eval-cases's window (`--horizon 5`: the plan, then the car stays braked to rest).
-want braking && run_case braking --behavior sudden_braking --t0 3.0 --seed 3736694364469406750 --horizon 5
-want swerve && run_case swerve --behavior lead_swerve --t0 2.0 --seed 16192964095509768722
-# The same with the lead car replaced by the asset library's best-fitting synthetic vehicle (its Gaussians
-# were learned from behind only; seen from 8 m nearer or turned they thin out and tear).
+# Lead swerve and sudden braking are measured over 5 s from t0 (`eval-cases`'s window): the lead car
+# is 20 m ahead of a slow ego, which closes on it after the plan's own end.
 lead=5efc9139-933d-4339-b584-00054253c4ce
-if want braking-replaced || want swerve-replaced; then
+cutter=0d238564-0ebe-47b3-8067-593b980ce26d
+oncoming=ed323433-787d-45b0-b7aa-b8a06c191eaf
+want cut-in && run_case cut-in --behavior sudden_cut_in --t0 3.5 --seed 1
+want braking && run_case braking --behavior sudden_braking --t0 3.0 --seed 3736694364469406750 --horizon 5
+want swerve && run_case swerve --behavior lead_swerve --t0 2.0 --seed 16192964095509768722 --horizon 5
+want drift && run_case drift --behavior opposing_drift --t0 0 --seed 2
+# The same cases with the adversary replaced by an aligned asset (`--replace <track>=auto`).
+if want cut-in-replaced || want braking-replaced || want swerve-replaced || want drift-replaced; then
   [ -d "$out/assets" ] || for v in sedan van truck; do "$bin" asset --library "$out/assets" --from-synth "$v"; done
 fi
+want cut-in-replaced && run_case cut-in-replaced --behavior sudden_cut_in --t0 3.5 --seed 1 \
+  --replace "$cutter=auto" --asset-library "$out/assets"
 want braking-replaced && run_case braking-replaced --behavior sudden_braking --t0 3.0 --seed 3736694364469406750 --horizon 5 \
   --replace "$lead=auto" --asset-library "$out/assets"
-want swerve-replaced && run_case swerve-replaced --behavior lead_swerve --t0 2.0 --seed 16192964095509768722 \
+want swerve-replaced && run_case swerve-replaced --behavior lead_swerve --t0 2.0 --seed 16192964095509768722 --horizon 5 \
   --replace "$lead=auto" --asset-library "$out/assets"
-# No valid opposing drift exists on this log (every drift path touches 0d238564, which overtakes
-# the ego on its left); the planner refuses it (exit 3), counted here, not dropped.
-want drift && run_case drift --behavior opposing_drift --t0 0 --seed 2
+want drift-replaced && run_case drift-replaced --behavior opposing_drift --t0 0 --seed 2 \
+  --replace "$oncoming=auto" --asset-library "$out/assets"
 python3 - "$out" "$dest" <<'PY'
 import cv2, glob, os, sys
 out, dest = sys.argv[1:3]
@@ -57,4 +59,4 @@ for d in sorted(glob.glob(f"{out}/*/videos/*_frames")):
     print(case, layout, len(frames), "frames", w, "x", h)
 PY
 tar czf "$dest/cases.tgz" -C "$out" --exclude='*_frames' --exclude=scene --exclude='model/*.ply' --exclude='model/actors' \
-  --exclude='model/checkpoint*' --ignore-failed-read braking cut-in swerve drift braking-replaced swerve-replaced model/model.json
+  --exclude='model/checkpoint*' --ignore-failed-read braking cut-in swerve drift cut-in-replaced braking-replaced swerve-replaced drift-replaced model/model.json
