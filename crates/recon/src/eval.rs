@@ -86,6 +86,13 @@ pub struct EvalReport {
     pub moving_vehicle_clear_profile_iou: Option<Mean>,
     #[serde(default)]
     pub moving_vehicle_clear_lidar_iou: Option<Mean>,
+    /// Over all pairs: the mean share of the rendered silhouette inside the profile and of the
+    /// profile it covers (`VehicleIou::profile_precision`, `profile_recall`): whether the IoU is
+    /// lost to spill or to a car drawn smaller than its profile.
+    #[serde(default)]
+    pub moving_vehicle_profile_precision: Option<Mean>,
+    #[serde(default)]
+    pub moving_vehicle_profile_recall: Option<Mean>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -197,6 +204,12 @@ pub fn evaluate<B: Backend>(
         moving_vehicle_clear_box_iou: mean(clear(&per_view).map(|x| x.box_iou)),
         moving_vehicle_clear_profile_iou: mean(clear(&per_view).map(|x| x.profile_iou)),
         moving_vehicle_clear_lidar_iou: mean(clear(&per_view).filter_map(|x| x.lidar_iou)),
+        moving_vehicle_profile_precision: mean(
+            per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.profile_precision())),
+        ),
+        moving_vehicle_profile_recall: mean(
+            per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.profile_recall())),
+        ),
         lpips: None,
         per_view,
     })

@@ -169,10 +169,13 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&r)?);
         return Ok(());
     }
-    let show = |name: &str, m: &Option<recon::eval::Mean>| match m {
-        Some(m) => println!("{name:<28} {:>9.4}  ({} views)", m.mean, m.count),
+    // Means over views, or over (view, actor) / (view, moving vehicle) pairs.
+    let over = |name: &str, unit: &str, m: &Option<recon::eval::Mean>| match m {
+        Some(m) => println!("{name:<28} {:>9.4}  ({} {unit})", m.mean, m.count),
         None => println!("{name:<28} {:>9}", "n/a"),
     };
+    let show = |name: &str, m: &Option<recon::eval::Mean>| over(name, "views", m);
+    let pairs = |name: &str, m: &Option<recon::eval::Mean>| over(name, "pairs", m);
     println!("held-out views: {}", r.views);
     show("PSNR (dB)", &r.psnr);
     show("SSIM", &r.ssim);
@@ -183,13 +186,15 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     show("Normal L1 MAE vs GT (all)", &r.normal_gt_all_l1);
     show("Normal Cos MAE vs GT (all)", &r.normal_gt_all_cos);
     show("actor mask IoU", &r.actor_iou);
-    show("per-actor mask IoU", &r.per_actor_iou);
-    show("moving-vehicle IoU, box hull", &r.moving_vehicle_box_iou);
-    show("moving-vehicle IoU, profile", &r.moving_vehicle_profile_iou);
-    show("moving-vehicle IoU, LiDAR", &r.moving_vehicle_lidar_iou);
-    show("  clear views: box hull", &r.moving_vehicle_clear_box_iou);
-    show("  clear views: profile", &r.moving_vehicle_clear_profile_iou);
-    show("  clear views: LiDAR", &r.moving_vehicle_clear_lidar_iou);
+    pairs("per-actor mask IoU", &r.per_actor_iou);
+    pairs("moving-vehicle IoU, box hull", &r.moving_vehicle_box_iou);
+    pairs("moving-vehicle IoU, profile", &r.moving_vehicle_profile_iou);
+    pairs("moving-vehicle IoU, LiDAR", &r.moving_vehicle_lidar_iou);
+    pairs("  clear pairs: box hull", &r.moving_vehicle_clear_box_iou);
+    pairs("  clear pairs: profile", &r.moving_vehicle_clear_profile_iou);
+    pairs("  clear pairs: LiDAR", &r.moving_vehicle_clear_lidar_iou);
+    pairs("  profile precision", &r.moving_vehicle_profile_precision);
+    pairs("  profile recall", &r.moving_vehicle_profile_recall);
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
 }
