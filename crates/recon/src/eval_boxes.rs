@@ -217,9 +217,14 @@ pub fn moving_vehicle_iou<B: Backend>(
         let on_car = sweep.and_then(|s| points_on(scene, track, state.size_lwh, s)).unwrap_or_default();
         let lidar_iou = lidar_mask(v, &pose, &on_car).and_then(|mut m| {
             visible(&mut m);
-            (m.iter().filter(|x| **x).count() >= MIN_PIXELS).then(|| iou(&mask, &m)).flatten()
+            (count(&m) >= MIN_PIXELS).then(|| iou(&mask, &m)).flatten()
         });
-        if let (Some(b), Some(p)) = (iou(&mask, &truth), iou(&mask, &profile)) {
+        // The profile's IoU from the pixel counts the pair keeps.
+        let (rendered_px, profile_px) = (count(&mask), count(&profile));
+        let profile_overlap_px = mask.iter().zip(&profile).filter(|(a, b)| **a && **b).count();
+        let union = rendered_px + profile_px - profile_overlap_px;
+        let profile_iou = (union > 0).then(|| profile_overlap_px as f64 / union as f64);
+        if let (Some(b), Some(p)) = (iou(&mask, &truth), profile_iou) {
             out.push(VehicleIou {
                 track: actor.track_id.clone(),
                 box_iou: b,
@@ -228,9 +233,9 @@ pub fn moving_vehicle_iou<B: Backend>(
                 lidar_points: on_car.len(),
                 visible_fraction: (shown as f64 / area.max(1.0)).min(1.0),
                 height_px: height * stored_height / v.height() as f64,
-                rendered_px: count(&mask),
-                profile_px: count(&profile),
-                profile_overlap_px: mask.iter().zip(&profile).filter(|(a, b)| **a && **b).count(),
+                rendered_px,
+                profile_px,
+                profile_overlap_px,
             });
         }
     }
