@@ -11,9 +11,10 @@ use std::collections::HashMap;
 use std::ffi::CString;
 use std::sync::{Arc, Mutex};
 
-const SOURCE: [&str; 6] = [
+const SOURCE: [&str; 7] = [
     include_str!("kernels/project.cu"),
     include_str!("kernels/tiles.cu"),
+    include_str!("kernels/fixed.cu"),
     include_str!("kernels/chain.cu"),
     include_str!("kernels/raster.cu"),
     include_str!("kernels/raster_back.cu"),
@@ -32,6 +33,7 @@ pub(crate) struct Kernels {
     pub tile_ranges: CudaFunction,
     pub raster_forward: CudaFunction,
     pub raster_backward: CudaFunction,
+    pub upstream_max: CudaFunction,
     pub chain: CudaFunction,
     pub scan_blocks: CudaFunction,
     pub scan_add: CudaFunction,
@@ -113,6 +115,7 @@ impl Gpu {
             tile_ranges: f("tile_ranges")?,
             raster_forward: f("raster_forward")?,
             raster_backward: f("raster_backward")?,
+            upstream_max: f("upstream_max")?,
             chain: f("chain_kernel")?,
             scan_blocks: f("scan_blocks")?,
             scan_add: f("scan_add")?,

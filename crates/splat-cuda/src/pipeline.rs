@@ -1,8 +1,10 @@
 //! The kernel launches. Forward: project every Gaussian and count its tiles; order the Gaussians
 //! by depth and scan their counts in that order (`sort`); emit one `(tile, index)` pair per tile
 //! overlap, depth-ordered; sort the pairs by tile (`sort`); find
-//! each tile's range; rasterise. Backward: zero the screen-space accumulators, rasterise back to
-//! front (warp-reduced atomics per Gaussian), then the per-Gaussian chain rule. The one host round trip is the intersection count.
+//! each tile's range; rasterise. Backward: find the upstream gradients' largest value (the
+//! fixed-point scale), zero the screen-space accumulators, rasterise back to front (warp-reduced
+//! integer atomics per Gaussian, so one input gives one result), then the per-Gaussian chain rule
+//! (which reads the sums back as floats). The one host round trip is the intersection count.
 
 use crate::device::Gpu;
 use crate::state::{grow, Buffers, Shape, G2, PROJ};
@@ -230,8 +232,10 @@ impl Gpu {
         let (n, nf) = (sh.n, sh.nf);
         let kc = (sh.sh_degree + 1) * (sh.sh_degree + 1) * 3;
         let (ca, oa) = (cam_arg(cam), opts_arg(opts, sh));
-        grow(s, &mut b.g2, n * (G2 + nf))?;
-        s.memset_zeros(&mut b.g2)?;
+        let rows = n * (G2 + nf);
+        grow(s, &mut b.g2q, rows)?;
+        s.memset_zeros(&mut b.g2q)?;
+        s.memset_zeros(&mut b.fix_max)?;
         for (buf, len) in [
             (&mut b.g_means, 3 * n),
             (&mut b.g_log_scales, 3 * n),
@@ -245,12 +249,31 @@ impl Gpu {
             s.memset_zeros(buf)?;
         }
         let (w, h) = (sh.width as i32, sh.height as i32);
+        let (p32, nf32) = ((sh.width * sh.height) as u32, nf as u32);
+        let max_cfg = LaunchConfig {
+            grid_dim: ((sh.width * sh.height).div_ceil(256).clamp(1, 1024) as u32, 1, 1),
+            block_dim: (256, 1, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: the upstream buffers hold the last render's p pixels (3p, p, p, 3p, nf * p).
+        unsafe {
+            s.launch_builder(&k.upstream_max)
+                .arg(&p32)
+                .arg(&nf32)
+                .arg(&b.up_rgb)
+                .arg(&b.up_alpha)
+                .arg(&b.up_depth)
+                .arg(&b.up_normal)
+                .arg(&b.up_feat)
+                .arg(&mut b.fix_max)
+                .launch(max_cfg)
+        }?;
         let cfg = LaunchConfig {
             grid_dim: (sh.tiles_x as u32, sh.tiles_y as u32, 1),
             block_dim: (TILE as u32, (TILE / 2) as u32, 1), // two pixels per thread
             shared_mem_bytes: 0,
         };
-        // SAFETY: as in the forward pass; g2 holds n rows of 13 + nf.
+        // SAFETY: as in the forward pass; g2q holds n rows of 13 + nf.
         unsafe {
             s.launch_builder(&k.raster_backward)
                 .arg(&w)
@@ -267,7 +290,8 @@ impl Gpu {
                 .arg(&b.up_depth)
                 .arg(&b.up_normal)
                 .arg(&b.up_feat)
-                .arg(&mut b.g2)
+                .arg(&mut b.g2q)
+                .arg(&mut b.fix_max)
                 .launch(cfg)
         }?;
         let n32 = n as i32;
@@ -283,7 +307,9 @@ impl Gpu {
                 .arg(&ca)
                 .arg(&oa)
                 .arg(&b.valid)
-                .arg(&b.g2)
+                .arg(&b.g2q)
+                .arg(&b.proj)
+                .arg(&b.fix_max)
                 .arg(&mut b.g_means)
                 .arg(&mut b.g_log_scales)
                 .arg(&mut b.g_rotations)

@@ -69,8 +69,10 @@ pub(crate) struct Buffers {
     pub up_depth: CudaSlice<f32>,
     pub up_normal: CudaSlice<f32>,
     pub up_feat: CudaSlice<f32>,
-    // Gradients (N).
-    pub g2: CudaSlice<f32>,
+    // Gradients (N): the screen-space sums in fixed point (fixed.cu) and their scale's upstream
+    // max (bits).
+    pub g2q: CudaSlice<u64>,
+    pub fix_max: CudaSlice<u32>,
     pub g_means: CudaSlice<f32>,
     pub g_log_scales: CudaSlice<f32>,
     pub g_rotations: CudaSlice<f32>,
@@ -119,7 +121,8 @@ impl Buffers {
             up_depth: f()?,
             up_normal: f()?,
             up_feat: f()?,
-            g2: f()?,
+            g2q: s.alloc_zeros(1)?,
+            fix_max: u()?,
             g_means: f()?,
             g_log_scales: f()?,
             g_rotations: f()?,

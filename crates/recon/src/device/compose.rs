@@ -165,7 +165,7 @@ pub(crate) struct Extras<'a> {
     pub densifying: bool,
     pub max_side: usize,
     /// The loss's sums (the flattening sum goes to `ACC_FLAT`).
-    pub acc: &'a mut CudaSlice<f32>,
+    pub acc: &'a mut CudaSlice<u64>,
 }
 
 /// The models' gradients (zeroed first) from the world gradients `gw`, plus flattening and statistics.

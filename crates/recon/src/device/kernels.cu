@@ -21,9 +21,19 @@ struct Xf {
     float m[256];
 };
 
-__device__ __forceinline__ void warp_add(float* dst, float v) {
+// A warp's sum of `v` added to a loss sum in fixed point (units of 2^-ACC_BITS; the host's
+// `loss::ACC_BITS`): integer atomics add in any order to the same total, so the reported loss is
+// the same every run (float atomics made it differ in its last bits). A pixel's loss terms are
+// at most a few units of 1 (the flattening term: a scale in metres), so a sum over millions of
+// pixels stays far below 2^(63 - ACC_BITS) = 2.1e9.
+// A non-finite sum sets acc[ACC_NAN] instead (the host then reports the loss as NaN).
+#define ACC_BITS 32
+#define ACC_NAN 7
+__device__ __forceinline__ void warp_add(unsigned long long* acc, int k, float v) {
     for (int off = 16; off > 0; off >>= 1) v += __shfl_down_sync(0xffffffffu, v, off);
-    if ((threadIdx.x & 31) == 0 && v != 0.0f) atomicAdd(dst, v);
+    if ((threadIdx.x & 31) != 0) return;
+    if (!isfinite(v)) atomicOr(acc + ACC_NAN, 1ull);
+    else if (long long q = __float2ll_rn(ldexpf(v, ACC_BITS)); q != 0) atomicAdd(acc + k, (unsigned long long)q);
 }
 
 // A run of world rows: model rows src0..src0+n drawn at world rows dst0.., moved by x when
@@ -103,7 +113,7 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
                                         const float* gw_rots, const float* gw_logits, const float* gw_mean2d, const int* valid, const float* proj,
                                         int proj_floats, int proj_extent, const float* log_scales, float flat_w,
                                         const unsigned* counts, int densifying, float half_side, float* g_means,
-                                        float* g_log_scales, float* g_rots, float* g_logits, float* grad_sum, unsigned* seen, float* max_radius, float* acc) {
+                                        float* g_log_scales, float* g_rots, float* g_logits, float* grad_sum, unsigned* seen, float* max_radius, unsigned long long* acc) {
     int o = blockIdx.x * blockDim.x + threadIdx.x;
     float e = 0.0f;
     if (o < n_world) {
@@ -142,7 +152,7 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
             }
         }
     }
-    warp_add(&acc[6], e);
+    warp_add(acc, 6, e);
 }
 
 // The SH gradients of scatter_rows, one thread per model float (world row o, float f of its

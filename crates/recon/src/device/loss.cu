@@ -50,7 +50,7 @@ __device__ void pixel_taps(const CamK& cam, int i, int res, int* idx, float* w) 
 // Composite with the sky, L1 and its gradient (SSIM: ssim.cu).
 extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* sky, const float* rgb,
                                     const float* alpha, const float* target, float w_l1, float* out,
-                                    float* g_out, float* acc) {
+                                    float* g_out, unsigned long long* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l1 = 0.0f, sq = 0.0f;
     if (i < p) {
@@ -69,18 +69,21 @@ extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* s
             g_out[3 * i + c] = w_l1 * copysignf(1.0f, d);
         }
     }
-    warp_add(&acc[0], l1);
-    warp_add(&acc[1], sq);
+    warp_add(acc, 0, l1);
+    warp_add(acc, 1, sq);
 }
 
 // The photometric gradient on the composite, then through the composite to RGB, alpha and the
 // sky texels. Thousands of sky pixels share a texel, so the texel gradients are summed per warp
 // first (lanes with the same texel, `__match_any_sync`) and only the lowest such lane adds to
-// global memory: one atomic per distinct texel, tap and channel instead of one per pixel.
-// Launched with 256 threads a block (`linear`); every lane reaches the warp-wide calls.
+// global memory: one atomic per distinct texel, tap and channel instead of one per pixel. The
+// texel sums are kept in fixed point (`sky_q`, `sky_scale` units; see `sky_dequantize`), so they
+// are the same whatever order the warps add in. Launched with 256 threads a block (`linear`);
+// every lane reaches the warp-wide calls.
 extern "C" __global__ void photo_grad(int p, CamK cam, int sky_res, const float* sky, const float* alpha,
                                       const float* out, const float* target, const float* bterms, float w_ssim,
-                                      const float* g_out, float* up_rgb, float* up_alpha, float* sky_grad) {
+                                      const float* g_out, float* up_rgb, float* up_alpha, float sky_scale,
+                                      unsigned long long* sky_q) {
     __shared__ float stage[8][32][3];
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     int lane = threadIdx.x & 31, wid = threadIdx.x >> 5;
@@ -113,16 +116,29 @@ extern "C" __global__ void photo_grad(int p, CamK cam, int sky_res, const float*
                 int l = __ffs(m) - 1;
                 for (int c = 0; c < 3; c++) sum[c] += stage[wid][l][c];
             }
-            for (int c = 0; c < 3; c++)
-                if (sum[c] != 0.0f) atomicAdd(&sky_grad[key * 3 + c], sum[c]);
+            for (int c = 0; c < 3; c++) {
+                if (isnan(sum[c])) atomicOr(sky_q + 6 * sky_res * sky_res * 3, 1ull);  // the NaN flag
+                else if (long long q = __float2ll_rn(sum[c] * sky_scale); q != 0)
+                    atomicAdd(sky_q + key * 3 + c, (unsigned long long)q);
+            }
         }
         __syncwarp();
     }
 }
 
+// The sky's texel gradients (n values, then the NaN flag) from fixed point. The photometric
+// loss is a mean over the view's 3p values, so a pixel's gradient is of the order of 1/(3p):
+// the host sets sky_scale = 2^28 * 2^ceil(log2(3p)), a unit of about 2^-28 / (3p), and a texel's
+// sum over every pixel stays some 2^35 units below where it could wrap.
+extern "C" __global__ void sky_dequantize(int n, const unsigned long long* q, float sky_scale, float* grad) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    grad[i] = q[n] != 0 ? __uint_as_float(0x7fffffffu) : __ll2float_rn((long long)q[i]) / sky_scale;
+}
+
 // Relative depth L1 where the prior has a value; `scale` = weight / valid count.
 extern "C" __global__ void depth_loss(int p, const float* depth, const float* prior, float scale, float inv_valid,
-                                      float* up_depth, float* acc) {
+                                      float* up_depth, unsigned long long* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l = 0.0f;
     if (i < p) {
@@ -134,7 +150,7 @@ extern "C" __global__ void depth_loss(int p, const float* depth, const float* pr
         }
         up_depth[i] = g;
     }
-    warp_add(&acc[3], l);
+    warp_add(acc, 3, l);
 }
 
 // Unit rendered normals (x, y, z, |n|) and how many pixels the normal term uses (the reference
@@ -160,7 +176,7 @@ extern "C" __global__ void normal_unit(int p, const float* normal, const float* 
 
 // L_normal's gradient on the unit normals (into g_unit, which this writes for every pixel).
 extern "C" __global__ void normal_terms(int p, const float* unit, const float* nref, float weight,
-                                        const unsigned* count, float* g_unit, float* acc) {
+                                        const unsigned* count, float* g_unit, unsigned long long* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l = 0.0f;
     if (i < p) {
@@ -177,7 +193,7 @@ extern "C" __global__ void normal_terms(int p, const float* unit, const float* n
         }
         for (int c = 0; c < 3; c++) g_unit[3 * i + c] = g[c];
     }
-    warp_add(&acc[4], l);
+    warp_add(acc, 4, l);
 }
 
 // nbar = normalize(avgpool3x3(unit)) (zero padding, / 9), as (x, y, z, |m|).
@@ -210,7 +226,7 @@ __device__ __forceinline__ void through_normalise(const float* g, const float* u
 // L_geo's terms: adds its direct gradient into g_unit and writes the gradient on the pooled
 // mean m (g_m); `s` = weight / sum of weights.
 extern "C" __global__ void geo_terms(int p, const float* unit, const float* nbar, const float* wg, float s,
-                                     float inv_wsum, float* g_unit, float* g_m, float* acc) {
+                                     float inv_wsum, float* g_unit, float* g_m, unsigned long long* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l = 0.0f;
     if (i < p) {
@@ -226,7 +242,7 @@ extern "C" __global__ void geo_terms(int p, const float* unit, const float* nbar
         }
         for (int c = 0; c < 3; c++) g_m[3 * i + c] = gm[c];
     }
-    warp_add(&acc[5], l);
+    warp_add(acc, 5, l);
 }
 
 // The pool's adjoint (when `geo`), then back through the normalisation to the rendered normal.

@@ -1,7 +1,9 @@
 //! The view loss on the device (recon::loss::view_loss, term for term): composite with the sky,
 //! L1 + SSIM, relative depth L1, `L_normal`, `L_geo`, and their gradients written straight into
 //! the rasterizer's upstream buffers. The scalar terms are summed on the device into `acc` and
-//! read back once per iteration (with the flattening sum) to report the loss.
+//! read back once per iteration (with the flattening sum) to report the loss. Every sum over
+//! pixels that the warps add to in any order (the loss terms, the sky's texel gradients) is kept
+//! in fixed point, so one seed gives one result (docs/cuda.md, "One seed, one result").
 
 use super::kernels::{linear, CamK, Kernels, Win};
 use super::targets::ViewTargets;
@@ -11,9 +13,14 @@ use splat_cuda::ImageIo;
 use splat_cuda::{grow, CudaError};
 use std::sync::Arc;
 
-/// Indices into `acc`.
+/// Indices into `acc` (fixed point, units of 2^-ACC_BITS as kernels.cu's `warp_add`); a
+/// non-zero `acc[ACC_NAN]` marks a non-finite term.
 pub(crate) const ACC_FLAT: usize = 6;
+pub(crate) const ACC_NAN: usize = 7;
 pub(crate) const ACC_LEN: usize = 8;
+pub(crate) const ACC_BITS: i32 = 32;
+/// The sky's texel sums keep this many bits against a pixel's gradient (loss.cu, `sky_dequantize`).
+const SKY_BITS: i32 = 28;
 /// Indices into `counts`.
 pub(crate) const COUNT_NORMAL: usize = 0;
 pub(crate) const COUNT_DRAWN: usize = 1;
@@ -28,8 +35,10 @@ pub(crate) struct Scratch {
     pub nbar: CudaSlice<f32>,
     pub g_unit: CudaSlice<f32>,
     pub g_m: CudaSlice<f32>,
-    pub acc: CudaSlice<f32>,
+    pub acc: CudaSlice<u64>,
     pub counts: CudaSlice<u32>,
+    /// The sky's texel gradients in fixed point, then a NaN flag.
+    pub sky_q: CudaSlice<u64>,
 }
 
 impl Scratch {
@@ -45,6 +54,7 @@ impl Scratch {
             g_m: s.alloc_zeros(1)?,
             acc: s.alloc_zeros(ACC_LEN)?,
             counts: s.alloc_zeros(2)?,
+            sky_q: s.alloc_zeros(1)?,
         })
     }
 
@@ -88,6 +98,10 @@ pub(crate) fn launch(
     let p = (cam.width * cam.height) as usize;
     sc.fit(s, p)?;
     s.memset_zeros(&mut sc.acc)?;
+    let texels = 6 * sky.res * sky.res * 3;
+    grow(s, &mut sc.sky_q, texels + 1)?;
+    s.memset_zeros(&mut sc.sky_q)?;
+    let sky_scale = 2f32.powi(SKY_BITS + (3 * p).next_power_of_two().trailing_zeros() as i32);
     s.memset_zeros(&mut sc.counts)?;
     let (p32, ck, res) = (p as i32, CamK::of(cam), sky.res as i32);
     let w_l1 = ((1.0 - w.ssim) / (3 * p) as f64) as f32;
@@ -138,8 +152,16 @@ pub(crate) fn launch(
             .arg(&sc.g_out)
             .arg(&mut *io.up_rgb)
             .arg(&mut *io.up_alpha)
-            .arg(&mut *sky.grad)
+            .arg(&sky_scale)
+            .arg(&mut sc.sky_q)
             .launch(linear(p))?;
+        let n_texels = texels as i32;
+        s.launch_builder(&k.sky_dequantize)
+            .arg(&n_texels)
+            .arg(&sc.sky_q)
+            .arg(&sky_scale)
+            .arg(&mut *sky.grad)
+            .launch(linear(texels))?;
         match (&t.depth, w.depth > 0.0 && t.depth_valid > 0) {
             (Some(dp), true) => {
                 let inv = 1.0 / t.depth_valid as f64;
@@ -217,8 +239,9 @@ fn tiles(cam: &splat::Camera, maps: u32) -> LaunchConfig {
 }
 
 /// The loss parts from the device sums (`acc`, `counts` as read back) for a view of `p` pixels.
-pub(crate) fn parts(acc: &[f32], counts: &[u32], p: usize, t: &ViewTargets, w: &LossWeights) -> (LossParts, f64) {
-    let a = |i: usize| acc[i] as f64;
+pub(crate) fn parts(acc: &[u64], counts: &[u32], p: usize, t: &ViewTargets, w: &LossWeights) -> (LossParts, f64) {
+    let nan = acc[ACC_NAN] != 0;
+    let a = |i: usize| if nan { f64::NAN } else { acc[i] as i64 as f64 * 2f64.powi(-ACC_BITS) };
     let n3 = (3 * p) as f64;
     let mut parts = LossParts { l1: a(0) / n3, ssim: a(2) / n3, ..LossParts::default() };
     let mse = a(1) / n3;

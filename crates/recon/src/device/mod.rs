@@ -192,7 +192,7 @@ impl<'a> DeviceTrainer<'a> {
         };
         compose::scatter(&self.k, &s, &mut self.dm, &self.segs, degree, &gw, ex).map_err(dev)?;
         self.ledger.lap(Phase::Scatter);
-        let mut acc = [0f32; loss::ACC_LEN];
+        let mut acc = [0u64; loss::ACC_LEN];
         let mut counts = [0u32; 2];
         s.memcpy_dtoh(&self.scratch.acc, &mut acc).map_err(dev)?;
         s.memcpy_dtoh(&self.scratch.counts, &mut counts).map_err(dev)?;

@@ -53,7 +53,7 @@ __device__ __forceinline__ float column_pass(const Win& win, int y0, int height,
 // composite `out` and the target (3 channels, interleaved); the map's sum into acc[2].
 // Grid: one block of 256 threads per tile.
 extern "C" __global__ void __launch_bounds__(256) ssim_forward(int width, int height, Win win, const float* out,
-                                                               const float* target, float* terms, float* acc) {
+                                                               const float* target, float* terms, unsigned long long* acc) {
     __shared__ float xs[3][SH][SH], ys[3][SH][SH];
     __shared__ float hb[5][SH][ST];
     int x0 = blockIdx.x * ST, y0 = blockIdx.y * ST;
@@ -98,7 +98,7 @@ extern "C" __global__ void __launch_bounds__(256) ssim_forward(int width, int he
         t[p + i] = inv_n * (-s / b2);
         t[2 * p + i] = inv_n * (2.0f * a1 / (b1 * b2));
     }
-    warp_add(&acc[2], ssum);
+    warp_add(acc, 2, ssum);
 }
 
 // The same window over `maps` (map blockIdx.z of width x height) into `dst`: the blur of the

@@ -12,23 +12,13 @@
 #define ROW_THREADS 128
 #define ROW_STRIDE 49
 
-// Whether Gaussian i has any screen-space gradient to carry back.
-__device__ __forceinline__ bool chain_active(int i, const int* valid, const float* g2) {
-    if (!valid[i]) return false;
-    const float* a = g2 + (size_t)i * G2N;
-    bool any = false;
-    for (int k = 0; k < 13; k++) any = any || a[k] != 0.0f;
-    return any;
-}
-
 // Gaussian i's gradients; `row` holds its SH coefficients on entry and their gradient on return.
 // False, having written nothing, where the projection culls the Gaussian.
 __device__ __forceinline__ bool chain_one(int i, const float* means, const float* log_scales, const float* rots,
-                                          const float* logits, const Cam& cam, const Opts& o, const float* g2,
+                                          const float* logits, const Cam& cam, const Opts& o, const float* a,
                                           float* row, float* g_means, float* g_log_scales, float* g_rots,
                                           float* g_logits, float* g_mean2d) {
     int kc = (o.sh_degree + 1) * (o.sh_degree + 1);
-    const float* a = g2 + (size_t)i * G2N;
     Proj pr;
     Frame f;
     if (!project_one(i, means, log_scales, rots, logits, row, cam, o, pr, f)) return false;
@@ -193,21 +183,31 @@ __device__ __forceinline__ void copy_rows(unsigned lanes, int lane, int kc3, con
     __syncwarp();
 }
 
-// g_sh is cleared before: only the rows of Gaussians with a gradient are written.
+// g_sh is cleared before: only the rows of Gaussians with a gradient are written. Gaussian i's
+// screen-space sums come from the backward's fixed-point rows `g2q` (fixed.cu), with the scale's
+// upstream max `fix_max` and the forward's projections `proj` (the conic's unit).
 extern "C" __global__ void __launch_bounds__(ROW_THREADS) chain_kernel(
     int n, const float* means, const float* log_scales, const float* rots, const float* logits, const float* sh,
-    Cam cam, Opts o, const int* valid, const float* g2, float* g_means, float* g_log_scales, float* g_rots,
-    float* g_logits, float* g_sh, float* g_feat, float* g_mean2d) {
+    Cam cam, Opts o, const int* valid, const unsigned long long* g2q, const Proj* proj, const unsigned* fix_max,
+    float* g_means, float* g_log_scales, float* g_rots, float* g_logits, float* g_sh, float* g_feat,
+    float* g_mean2d) {
     __shared__ float rows[ROW_THREADS * ROW_STRIDE];
     int i = blockIdx.x * ROW_THREADS + threadIdx.x, lane = threadIdx.x & 31;
     int kc3 = 3 * (o.sh_degree + 1) * (o.sh_degree + 1);
     size_t first = (size_t)(i - lane) * kc3;
     float* warp_rows = rows + (threadIdx.x - lane) * ROW_STRIDE;
-    if (i < n)
-        for (int c = 0; c < NF; c++) g_feat[(size_t)i * NF + c] = g2[(size_t)i * G2N + 13 + c];
-    bool active = i < n && chain_active(i, valid, g2);
+    unsigned max_bits = *fix_max;
+    float a[13];
+    bool active = false;
+    if (i < n) {
+        float scale = fix_scale(max_bits);
+        bool nan = max_bits > 0x7f7fffffu;
+        for (int c = 0; c < NF; c++)
+            g_feat[(size_t)i * NF + c] = fixed_value((long long)g2q[(size_t)i * G2N + 13 + c], 13 + c, scale, 1.0f, nan);
+        active = valid[i] && fixed_row(i, g2q, proj, max_bits, a);
+    }
     copy_rows(__ballot_sync(0xffffffffu, active), lane, kc3, sh + first, kc3, warp_rows, ROW_STRIDE);
-    bool wrote = active && chain_one(i, means, log_scales, rots, logits, cam, o, g2, rows + threadIdx.x * ROW_STRIDE,
+    bool wrote = active && chain_one(i, means, log_scales, rots, logits, cam, o, a, rows + threadIdx.x * ROW_STRIDE,
                                      g_means, g_log_scales, g_rots, g_logits, g_mean2d);
     __syncwarp();
     copy_rows(__ballot_sync(0xffffffffu, wrote), lane, kc3, warp_rows, ROW_STRIDE, g_sh + first, kc3);

@@ -1,5 +1,6 @@
 // The backward rasterisation (splat::raster_backward, in f32): per tile, back to front, each
-// Gaussian's screen-space gradients summed over a warp and added to global memory with atomics.
+// Gaussian's screen-space gradients summed over a warp and added to global memory with integer
+// atomics in fixed point (fixed.cu: the same sums whatever order the warps arrive in).
 // Two pixels per thread: a block of 128 threads covers the 16x16 tile, a warp's 32 lanes an 8x8
 // block of it (lane pixels at rows r and r + 4), so each Gaussian's shared-memory read, block
 // test, ballot and warp sum serve 64 pixels rather than 32 (fwd+bwd at 100k Gaussians and
@@ -126,9 +127,10 @@ __device__ __forceinline__ void hit_grads(Px& p, const Proj& g, float alpha, flo
 #define BACKWARD_PARAMS                                                                                     \
     int width, int height, Opts o, const uint2 *ranges, const unsigned *vals, const Proj *proj, const float *feats, \
         const float *final_t, const unsigned *last, const float *up_rgb, const float *up_alpha,                     \
-        const float *up_depth, const float *up_normal, const float *up_feat, float *g2
+        const float *up_depth, const float *up_normal, const float *up_feat, unsigned long long *g2q,            \
+        unsigned *fix_max
 #define BACKWARD_ARGS \
-    width, height, o, ranges, vals, proj, feats, final_t, last, up_rgb, up_alpha, up_depth, up_normal, up_feat, g2
+    width, height, o, ranges, vals, proj, feats, final_t, last, up_rgb, up_alpha, up_depth, up_normal, up_feat, g2q, fix_max
 
 // One tile's backward pass; the kernel below picks SMOOTH from `o` and owns the shared memory.
 template <bool SMOOTH>
@@ -138,6 +140,7 @@ __device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigne
     int tid = threadIdx.y * TILE + threadIdx.x;
     int lane = tid & 31;
     uint2 range = ranges[tile];
+    float scale = fix_scale(*fix_max);  // upstream_max ran before this kernel
     Px px[2];
     bool any_geo = false;
     unsigned my_last = 0;
@@ -215,19 +218,19 @@ __device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigne
 #pragma unroll
             for (int k = 0; k < 2; k++)
                 if (hit[k]) hit_grads(px[k], g, alpha[k], e[k], cl[k], fi, geo, v);
-            float* dst = g2 + (size_t)sid[j] * G2N;
+            unsigned long long* dst = g2q + (size_t)sid[j] * G2N;
             if (__popc(hits) <= SPARSE_HITS) {
                 if (hit[0] || hit[1]) {
 #pragma unroll
                     for (int k = 0; k < 9; k++)
-                        if (v[k] != 0.0f) atomicAdd(dst + k, v[k]);
+                        if (v[k] != 0.0f) add_fixed(dst + k, v[k], value_scale(k, scale, g.conic), fix_max);
                     if (geo)
 #pragma unroll
                         for (int k = 9; k < 13; k++)
-                            if (v[k] != 0.0f) atomicAdd(dst + k, v[k]);
+                            if (v[k] != 0.0f) add_fixed(dst + k, v[k], scale, fix_max);
 #pragma unroll
                     for (int k = 13; k < G2N; k++)
-                        if (v[k] != 0.0f) atomicAdd(dst + k, v[k]);
+                        if (v[k] != 0.0f) add_fixed(dst + k, v[k], scale, fix_max);
                 }
                 continue;
             }
@@ -236,12 +239,13 @@ __device__ __forceinline__ void backward_tile(BACKWARD_PARAMS, Proj* sp, unsigne
                 // lanes 4k add value k (k < 8), lane 1 value 8: one atomic instruction
                 int k = (lane & 3) == 0 ? lane >> 2 : 8;
                 float sum = k < 8 ? v[0] : v[8];
-                if (((lane & 3) == 0 || lane == 1) && sum != 0.0f) atomicAdd(dst + k, sum);
+                if (((lane & 3) == 0 || lane == 1) && sum != 0.0f)
+                    add_fixed(dst + k, sum, value_scale(k, scale, g.conic), fix_max);
                 continue;
             }
             spread_sum(v, lane);
             int k = red_index(lane);
-            if (red_owner(lane) && k < G2N && v[0] != 0.0f) atomicAdd(dst + k, v[0]);
+            if (red_owner(lane) && k < G2N && v[0] != 0.0f) add_fixed(dst + k, v[0], value_scale(k, scale, g.conic), fix_max);
         }
         stop = start;
     }
