@@ -186,6 +186,27 @@ pub fn moving_vehicle_iou<B: Backend>(
     v: &View,
     sweep: Option<&Sweep>,
 ) -> Vec<VehicleIou> {
+    moving_vehicle_pairs(backend, model, scene, v, sweep, &mut |_, _| {})
+}
+
+/// The view-sized masks of one scored pair (`eval_pair_png` draws them): the rendered silhouette
+/// and the profile where no nearer box covers the view, that cover, and the actor's alpha.
+pub struct PairMasks<'a> {
+    pub rendered: &'a [bool],
+    pub profile: &'a [bool],
+    pub hidden: &'a [bool],
+    pub alpha: &'a [f64],
+}
+
+/// [`moving_vehicle_iou`], handing each scored pair and its masks to `sink` as well.
+pub fn moving_vehicle_pairs<B: Backend>(
+    backend: &B,
+    model: &SceneModel,
+    scene: &Scene,
+    v: &View,
+    sweep: Option<&Sweep>,
+    sink: &mut dyn FnMut(&VehicleIou, &PairMasks),
+) -> Vec<VehicleIou> {
     let mut out = Vec::new();
     for (ai, actor) in model.actors.iter().enumerate() {
         let Some(track) = scene.track(&actor.track_id) else { continue };
@@ -225,7 +246,7 @@ pub fn moving_vehicle_iou<B: Backend>(
         let union = rendered_px + profile_px - profile_overlap_px;
         let profile_iou = (union > 0).then(|| profile_overlap_px as f64 / union as f64);
         if let (Some(b), Some(p)) = (iou(&mask, &truth), profile_iou) {
-            out.push(VehicleIou {
+            let pair = VehicleIou {
                 track: actor.track_id.clone(),
                 box_iou: b,
                 profile_iou: p,
@@ -236,7 +257,9 @@ pub fn moving_vehicle_iou<B: Backend>(
                 rendered_px,
                 profile_px,
                 profile_overlap_px,
-            });
+            };
+            sink(&pair, &PairMasks { rendered: &mask, profile: &profile, hidden: &hidden, alpha: &alone.alpha });
+            out.push(pair);
         }
     }
     out

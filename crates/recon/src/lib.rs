@@ -24,6 +24,7 @@ pub mod error;
 pub mod eval;
 pub mod eval_boxes;
 pub mod eval_lidar;
+pub mod eval_pair_png;
 pub mod gt;
 pub mod image_check;
 pub mod init;

@@ -156,14 +156,35 @@ pub struct EvalArgs {
     json: bool,
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
+    /// Also draw each moving-vehicle pair (held-out image beside its render and box profile,
+    /// every pixel classed) into this new directory, with `pairs.csv` (docs/pandaset.md).
+    #[arg(long)]
+    pair_masks: Option<PathBuf>,
+}
+
+/// The report of `a` on `backend`, and the pair pictures if asked for.
+fn eval_on<B: recon::backend::Backend>(
+    backend: &B,
+    a: &EvalArgs,
+    priors: &recon::data::PriorLoader,
+) -> anyhow::Result<recon::eval::EvalReport> {
+    let r = recon::eval::evaluate_model_dir(backend, &a.model, &a.scene, priors)?;
+    if let Some(dir) = &a.pair_masks {
+        let n = recon::eval_pair_png::write_pair_masks(backend, &a.model, &a.scene, priors, dir)?;
+        eprintln!("wrote {n} pair pictures and pairs.csv -> {}", dir.display());
+    }
+    Ok(r)
 }
 
 pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
+    if let Some(dir) = a.pair_masks.as_ref().filter(|d| d.exists()) {
+        anyhow::bail!("{}: already exists (--pair-masks writes a new directory)", dir.display());
+    }
     let priors = priors_of(&a.scene)?;
     let r = match a.device {
-        Device::Cpu => recon::eval::evaluate_model_dir(&CpuF32, &a.model, &a.scene, priors.as_ref())?,
-        Device::CpuF64 => recon::eval::evaluate_model_dir(&Cpu, &a.model, &a.scene, priors.as_ref())?,
-        Device::Cuda => recon::eval::evaluate_model_dir(&open_cuda()?, &a.model, &a.scene, priors.as_ref())?,
+        Device::Cpu => eval_on(&CpuF32, &a, priors.as_ref())?,
+        Device::CpuF64 => eval_on(&Cpu, &a, priors.as_ref())?,
+        Device::Cuda => eval_on(&open_cuda()?, &a, priors.as_ref())?,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
