@@ -129,10 +129,11 @@ pub fn validate_scene(scene: &Scene, dir: Option<&Path>) -> Check {
         }
         if let Some(l) = &fr.lidar {
             if let Some(len) = relative_file(dir, &f("lidar.path"), &l.path, "lidar/")? {
-                if len != l.points as u64 * 16 {
+                // Checked: a hostile count (2^60 or more) would overflow the product.
+                if (l.points as u64).checked_mul(16) != Some(len) {
                     return fail(
                         f("lidar.points"),
-                        format!("{} points need {} bytes, file has {len}", l.points, l.points * 16),
+                        format!("{} points need {} bytes, file has {len}", l.points, l.points as u128 * 16),
                     );
                 }
             }

@@ -71,6 +71,21 @@ fn fuzz_scene_json() {
     });
 }
 
+/// A LiDAR point count whose byte size overflows is refused, naming the field: a fuzz case
+/// (the count replaced by 2^63) found `points * 16` overflowing in the scene's validation.
+#[test]
+fn a_huge_lidar_point_count_is_refused() {
+    let f = fixture();
+    let file = f.scene.join("scene.json");
+    let mut scene = scene::format::parse_scene_json(&file, &std::fs::read_to_string(&file).unwrap()).unwrap();
+    let k = scene.frames.iter().position(|fr| fr.lidar.is_some()).expect("the fixture has LiDAR");
+    for points in [usize::MAX, 1 << 60, (1 << 63) + 1] {
+        scene.frames[k].lidar.as_mut().unwrap().points = points;
+        let (field, _) = scene::validate::validate_scene(&scene, Some(&f.scene)).unwrap_err();
+        assert_eq!(field, format!("frames[{k}].lidar.points"), "{points} points");
+    }
+}
+
 #[test]
 fn fuzz_plan() {
     let tmp = tempfile::tempdir().unwrap();
