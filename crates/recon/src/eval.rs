@@ -215,14 +215,13 @@ pub fn evaluate<B: Backend>(
     })
 }
 
-/// Loads a model directory and its scene, then scores the held-out views under the model's split
-/// and scale.
-pub fn evaluate_model_dir<B: Backend>(
-    backend: &B,
+/// A model directory and its scene, loaded for scoring: the model, the scene, and its views under
+/// the model's split and scale; refused when the model was trained on another scene.
+pub fn load_model_and_views(
     model_dir: &Path,
     scene_dir: &Path,
     priors: &PriorLoader,
-) -> Result<EvalReport, ReconError> {
+) -> Result<(SceneModel, Scene, Vec<View>), ReconError> {
     let (model, record) = crate::model_io::load_model(model_dir)?;
     let cfg = crate::model_io::load_config(model_dir)?;
     let (scene, views) = crate::session::prepare(scene_dir, &cfg, priors)?;
@@ -234,5 +233,17 @@ pub fn evaluate_model_dir<B: Backend>(
             scene.name
         )));
     }
+    Ok((model, scene, views))
+}
+
+/// Loads a model directory and its scene, then scores the held-out views under the model's split
+/// and scale.
+pub fn evaluate_model_dir<B: Backend>(
+    backend: &B,
+    model_dir: &Path,
+    scene_dir: &Path,
+    priors: &PriorLoader,
+) -> Result<EvalReport, ReconError> {
+    let (model, scene, views) = load_model_and_views(model_dir, scene_dir, priors)?;
     evaluate(backend, &model, &scene, scene_dir, &views)
 }

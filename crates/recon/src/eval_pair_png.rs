@@ -77,9 +77,7 @@ pub fn write_pair_masks<B: Backend>(
     priors: &PriorLoader,
     dest: &Path,
 ) -> Result<usize, ReconError> {
-    let (model, _) = crate::model_io::load_model(model_dir)?;
-    let cfg = crate::model_io::load_config(model_dir)?;
-    let (scene, views) = crate::session::prepare(scene_dir, &cfg, priors)?;
+    let (model, scene, views) = crate::eval::load_model_and_views(model_dir, scene_dir, priors)?;
     let staged = scene::StagedDir::new(dest, false)?;
     let mut csv = String::from(
         "file,frame,camera,track,profile_iou,profile_precision,profile_recall,box_iou,clear,height_px,visible_fraction\n",
