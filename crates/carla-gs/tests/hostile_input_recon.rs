@@ -286,3 +286,32 @@ fn resume_checks_scene_settings_and_a_finished_run() {
     assert!(ok(train(&scene, &model, &["--resume"])).contains("trained 5 iterations"));
     assert!(model.join("model.json").is_file());
 }
+
+/// Views whose targets would not fit the memory are refused before any image is decoded, with the
+/// need, what is available and a scale that fits (a full-size PandaSet log at scale 1 needs 32
+/// GiB; loading it until the allocator fails ends in the OOM killer); a budget that is not a size
+/// is refused naming the variable.
+#[test]
+fn views_past_the_memory_budget_are_refused_before_loading() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = synth(tmp.path(), "s", "1");
+    let out = tmp.path().join("m");
+    let with_budget = |budget: &str| {
+        Command::new(env!("CARGO_BIN_EXE_carla-gs"))
+            .args(["train", s(&scene), "--out", s(&out), "--iters", "5"])
+            .env(recon::memory::BUDGET_ENV, budget)
+            .output()
+            .expect("run carla-gs")
+    };
+    // 9 views of 64x48 at the default scale 0.5 (32x24), 12 bytes a pixel (no priors): 81 KiB;
+    // 70 % of 100 KiB is 70 KiB, and scale 0.25 (16x12) needs 20 KiB.
+    refused(
+        with_budget("100K"),
+        &["not enough memory", "9 views at scale 0.5", "81.0 KiB", "100.0 KiB", "--scale 0.25"],
+    );
+    assert!(!out.exists(), "nothing is left behind");
+    refused(with_budget("lots"), &[recon::memory::BUDGET_ENV, "expected bytes"]);
+    assert!(!out.exists());
+    ok(with_budget("1G"));
+    assert!(out.join("model.json").is_file());
+}

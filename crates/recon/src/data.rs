@@ -42,7 +42,7 @@ pub fn is_held_out(frame: usize, every: usize) -> bool {
 
 /// Loads camera `cam`'s image as RGB in 0..1, resized to `width x height` (area-like triangle
 /// filter); an image of another size than the camera's, or a truncated JPEG, is refused.
-pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Result<Vec<[f64; 3]>, ReconError> {
+pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Result<Vec<[f32; 3]>, ReconError> {
     let img = crate::image_check::open_camera_image(path, &cam.name, cam.width, cam.height)?;
     let rgb = img.to_rgb32f();
     let rgb = if rgb.dimensions() != (width, height) {
@@ -50,7 +50,7 @@ pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Re
     } else {
         rgb
     };
-    Ok(rgb.pixels().map(|p| p.0.map(|v| (v as f64).clamp(0.0, 1.0))).collect())
+    Ok(rgb.pixels().map(|p| p.0.map(|v| v.clamp(0.0, 1.0))).collect())
 }
 
 /// Extra per-view targets (the priors), loaded at the view's size; `None` when there are none.

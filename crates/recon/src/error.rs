@@ -22,6 +22,8 @@ pub enum ReconError {
     Camera { camera: String, detail: String },
     #[error("{0}")]
     Input(String),
+    #[error("not enough memory: {0}")]
+    Memory(String),
     #[error("CUDA device: {0}")]
     Device(String),
 }

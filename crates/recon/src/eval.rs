@@ -113,7 +113,7 @@ fn score<B: Backend>(
         psnr: psnr(&d.rgb, &t.rgb),
         ssim: ssim_rgb(
             &d.rgb.iter().map(|p| p.map(|x| x.clamp(0.0, 1.0))).collect::<Vec<_>>(),
-            &t.rgb,
+            &t.rgb.iter().map(|p| p.map(f64::from)).collect::<Vec<_>>(),
             d.width,
             d.height,
         ),
@@ -121,7 +121,8 @@ fn score<B: Backend>(
     };
     let in_m = |i: usize| t.mask.as_ref().is_some_and(|m| m[i]);
     if let Some(nref) = &t.normal {
-        let (l1, cos, n) = normal_errors(&d.normal, nref, &in_m);
+        let nref: Vec<[f64; 3]> = nref.iter().map(|n| n.map(f64::from)).collect();
+        let (l1, cos, n) = normal_errors(&d.normal, &nref, &in_m);
         s.normal_prior = (n > 0).then_some((l1, cos));
     }
     let cam = scene.camera(&v.camera).ok_or_else(|| ReconError::Input(format!("unknown camera {}", v.camera)))?;

@@ -50,7 +50,7 @@ pub fn pair_png(v: &View, m: &PairMasks) -> Option<image::RgbImage> {
     let (x1, y1) = ((x1 + 1 + MARGIN).min(w), (y1 + 1 + MARGIN).min(h));
     let (cw, ch) = ((x1 - x0) as u32, (y1 - y0) as u32);
     let mut img = image::RgbImage::new(2 * cw * ENLARGE, ch * ENLARGE);
-    let byte = |q: f64| (q.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let byte = |q: f32| (q.clamp(0.0, 1.0) * 255.0).round() as u8;
     for (y, x) in (y0..y1).flat_map(|y| (x0..x1).map(move |x| (y, x))) {
         let i = y * w + x;
         let seen = v.targets.rgb.get(i).map_or([0; 3], |c| c.map(byte));

@@ -59,7 +59,7 @@ fn colour_of(p: DVec3, views: &[&View]) -> Option<[f64; 3]> {
         }
         let (u, w) = (v.cam.fx * c[0] / c[2] + v.cam.cx, v.cam.fy * c[1] / c[2] + v.cam.cy);
         (u >= 0.0 && w >= 0.0 && u < v.cam.width as f64 && w < v.cam.height as f64)
-            .then(|| v.targets.rgb[w as usize * v.width() + u as usize])
+            .then(|| v.targets.rgb[w as usize * v.width() + u as usize].map(f64::from))
     })
 }
 
@@ -185,7 +185,7 @@ pub fn initialise(
                 let stride = cfg.depth_stride.max(1);
                 for y in (0..v.height()).step_by(stride) {
                     for x in (0..v.width()).step_by(stride) {
-                        let d = depth[y * v.width() + x];
+                        let d = depth[y * v.width() + x] as f64;
                         if d <= 0.0 {
                             continue;
                         }
@@ -193,7 +193,7 @@ pub fn initialise(
                             [(x as f64 + 0.5 - v.cam.cx) / v.cam.fx * d, (y as f64 + 0.5 - v.cam.cy) / v.cam.fy * d, d];
                         let m = &v.cam.camera_from_world;
                         let pw: [f64; 3] = std::array::from_fn(|c| (0..3).map(|r| m[r][c] * (pc[r] - m[r][3])).sum());
-                        add(DVec3::from(pw), v.targets.rgb[y * v.width() + x]);
+                        add(DVec3::from(pw), v.targets.rgb[y * v.width() + x].map(f64::from));
                     }
                 }
             }

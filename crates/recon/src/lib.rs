@@ -29,6 +29,7 @@ pub mod gt;
 pub mod image_check;
 pub mod init;
 pub mod loss;
+pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod model_io;

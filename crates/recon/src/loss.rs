@@ -21,15 +21,18 @@ use serde::{Deserialize, Serialize};
 
 /// What a view is compared with, at training resolution. Maps are row-major; `normal` is unit, in
 /// OpenCV camera axes, `[0, 0, 0]` where unknown; `depth` is z-depth in metres, 0 where unknown.
+/// Stored in f32, the precision they come in (the decoder's f32 image, the priors' f32 maps; the
+/// `L_geo` weights are rounded to it): every view of a log is held for the whole run, and a full-size
+/// log has a billion pixels (`memory`). The loss reads them into f64.
 #[derive(Clone, Debug, Default)]
 pub struct Targets {
-    pub rgb: Vec<[f64; 3]>,
-    pub depth: Option<Vec<f64>>,
-    pub normal: Option<Vec<[f64; 3]>>,
+    pub rgb: Vec<[f32; 3]>,
+    pub depth: Option<Vec<f32>>,
+    pub normal: Option<Vec<[f32; 3]>>,
     /// Supervision mask M = (ground OR object) AND valid depth.
     pub mask: Option<Vec<bool>>,
     /// `L_geo` pixel weights (zero outside M).
-    pub geo_weight: Option<Vec<f64>>,
+    pub geo_weight: Option<Vec<f32>>,
 }
 
 /// Loss weights (the paper: 0.1 for each geometry term).
@@ -128,7 +131,7 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
     let mut l1 = 0.0;
     for i in 0..n {
         for c in 0..3 {
-            let d = out[i][c] - t.rgb[i][c];
+            let d = out[i][c] - t.rgb[i][c] as f64;
             l1 += d.abs();
             g_out[i][c] = (1.0 - w.ssim) * inv * d.signum();
         }
@@ -138,7 +141,7 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
     let mut gs = vec![0.0; n];
     for c in 0..3 {
         let x: Vec<f64> = out.iter().map(|p| p[c]).collect();
-        let y: Vec<f64> = t.rgb.iter().map(|p| p[c]).collect();
+        let y: Vec<f64> = t.rgb.iter().map(|p| p[c] as f64).collect();
         ssim += ssim_channel(&x, &y, r.width, r.height, Some(&mut gs)) / 3.0;
         for i in 0..n {
             g_out[i][c] -= w.ssim * gs[i] / 3.0;
@@ -162,9 +165,10 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
             let mut l = 0.0;
             for i in 0..n {
                 if dp[i] > 0.0 {
-                    let d = r.depth[i] - dp[i];
-                    l += d.abs() / dp[i];
-                    g.depth[i] += w.depth * s * d.signum() / dp[i];
+                    let di = dp[i] as f64;
+                    let d = r.depth[i] - di;
+                    l += d.abs() / di;
+                    g.depth[i] += w.depth * s * d.signum() / di;
                 }
             }
             parts.depth = l * s;
@@ -180,9 +184,10 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
             let s = 1.0 / used.len() as f64;
             let mut l = 0.0;
             for &i in &used {
-                l += 1.0 - dot(unit[i].0, nref[i]);
+                let nr = nref[i].map(f64::from);
+                l += 1.0 - dot(unit[i].0, nr);
                 for c in 0..3 {
-                    g_unit[i][c] -= w.normal * s * nref[i][c];
+                    g_unit[i][c] -= w.normal * s * nr[c];
                 }
             }
             parts.normal = l * s;
@@ -207,14 +212,14 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
 /// `g_unit`. Returns `(L, sum w)`.
 fn geo_term(
     unit: &[([f64; 3], f64)],
-    wg: &[f64],
+    wg: &[f32],
     width: usize,
     height: usize,
     weight: f64,
     g_unit: &mut [[f64; 3]],
 ) -> (f64, f64) {
     let n = width * height;
-    let wsum: f64 = wg.iter().sum();
+    let wsum: f64 = wg.iter().map(|w| *w as f64).sum();
     if wsum <= 0.0 {
         return (0.0, 0.0);
     }
@@ -242,14 +247,15 @@ fn geo_term(
     let mut g_m = vec![[0.0; 3]; n];
     let s = weight / wsum;
     for i in 0..n {
-        if wg[i] <= 0.0 || unit[i].1 == 0.0 {
+        let wi = wg[i] as f64;
+        if wi <= 0.0 || unit[i].1 == 0.0 {
             continue;
         }
-        l += wg[i] * (1.0 - dot(unit[i].0, nbar[i].0));
+        l += wi * (1.0 - dot(unit[i].0, nbar[i].0));
         for c in 0..3 {
-            g_unit[i][c] -= s * wg[i] * nbar[i].0[c];
+            g_unit[i][c] -= s * wi * nbar[i].0[c];
         }
-        let g_nbar = unit[i].0.map(|v| -s * wg[i] * v);
+        let g_nbar = unit[i].0.map(|v| -s * wi * v);
         g_m[i] = through_normalise(g_nbar, nbar[i].0, nbar[i].1);
     }
     // Adjoint of the average pool.
@@ -276,11 +282,11 @@ fn geo_term(
 }
 
 /// `L_geo` weights from a depth prior and the supervision mask: `(1 - minmax |Sobel(depth)|) * M`
-/// (pixels without depth get no weight).
-pub fn geo_weights(depth: &[f64], mask: &[bool], width: usize, height: usize) -> Vec<f64> {
+/// (pixels without depth get no weight), computed in f64 and stored in f32 as the other targets.
+pub fn geo_weights(depth: &[f32], mask: &[bool], width: usize, height: usize) -> Vec<f32> {
     let at = |x: isize, y: isize| {
         let (x, y) = (x.clamp(0, width as isize - 1) as usize, y.clamp(0, height as isize - 1) as usize);
-        depth[y * width + x]
+        depth[y * width + x] as f64
     };
     let mut mag = vec![0.0; width * height];
     for y in 0..height as isize {
@@ -298,7 +304,7 @@ pub fn geo_weights(depth: &[f64], mask: &[bool], width: usize, height: usize) ->
     (0..mag.len())
         .map(|i| {
             if used(i) && hi > lo {
-                1.0 - (mag[i] - lo) / (hi - lo)
+                (1.0 - (mag[i] - lo) / (hi - lo)) as f32
             } else if used(i) {
                 1.0
             } else {

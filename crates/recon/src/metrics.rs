@@ -6,8 +6,8 @@
 
 pub use crate::ssim::ssim_rgb;
 
-pub fn mse(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    let s: f64 = a.iter().zip(b).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).powi(2)).sum::<f64>()).sum();
+pub fn mse<T: Copy + Into<f64>>(a: &[[f64; 3]], b: &[[T; 3]]) -> f64 {
+    let s: f64 = a.iter().zip(b).map(|(x, y)| (0..3).map(|c| (x[c] - y[c].into()).powi(2)).sum::<f64>()).sum();
     s / (3 * a.len().max(1)) as f64
 }
 
@@ -20,7 +20,7 @@ pub fn psnr_from_mse(mse: f64) -> f64 {
 }
 
 /// PSNR of an image clamped to 0..1 against a target.
-pub fn psnr(img: &[[f64; 3]], target: &[[f64; 3]]) -> f64 {
+pub fn psnr<T: Copy + Into<f64>>(img: &[[f64; 3]], target: &[[T; 3]]) -> f64 {
     let c: Vec<[f64; 3]> = img.iter().map(|p| p.map(|v| v.clamp(0.0, 1.0))).collect();
     psnr_from_mse(mse(&c, target))
 }

@@ -50,6 +50,8 @@ pub struct TrainSummary {
 /// Loads the scene's views at the config's scale.
 pub fn prepare(scene_dir: &Path, cfg: &TrainConfig, priors: &PriorLoader) -> Result<(Scene, Vec<View>), ReconError> {
     let scene = scene::load_scene(scene_dir)?;
+    let with_priors = scene_dir.join("priors").join("priors.json").is_file();
+    crate::memory::check_views(&scene, cfg.scale, with_priors, crate::memory::available_bytes()?)?;
     let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, priors, &ProgressBar::hidden())?;
     if views.iter().all(|v| v.held_out) {
         return Err(ReconError::Input(format!("{}: every view is held out; nothing to train on", scene_dir.display())));

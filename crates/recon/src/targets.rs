@@ -13,12 +13,15 @@ use std::path::{Path, PathBuf};
 
 /// Targets (without the image) from prior maps, at `w x h`.
 pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
-    let depth: Vec<f64> = resample(&p.depth, p.width, p.height, w, h)
+    let depth: Vec<f32> = resample(&p.depth, p.width, p.height, w, h)
         .iter()
-        .map(|d| if d.is_finite() && *d > 0.0 { *d as f64 } else { 0.0 })
+        .map(|d| if d.is_finite() && *d > 0.0 { *d } else { 0.0 })
         .collect();
-    let normal: Vec<[f64; 3]> =
-        resample(&p.normal, p.width, p.height, w, h).iter().map(|n| crate::camera::cv_normal_from_waymo(*n)).collect();
+    // An axis permutation with signs: exact in f32.
+    let normal: Vec<[f32; 3]> = resample(&p.normal, p.width, p.height, w, h)
+        .iter()
+        .map(|n| crate::camera::cv_normal_from_waymo(*n).map(|c| c as f32))
+        .collect();
     let mask = resample(&p.mask, p.width, p.height, w, h);
     let geo = geo_weights(&depth, &mask, w, h);
     Targets { rgb: vec![], depth: Some(depth), normal: Some(normal), mask: Some(mask), geo_weight: Some(geo) }

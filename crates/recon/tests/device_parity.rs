@@ -41,13 +41,14 @@ fn add_priors(views: &mut [recon::data::View], seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for v in views.iter_mut() {
         let (w, h) = (v.width(), v.height());
-        let depth: Vec<f64> =
-            (0..w * h).map(|_| if rng.random::<f64>() < 0.2 { 0.0 } else { rng.random_range(2.0..40.0) }).collect();
-        let normal: Vec<[f64; 3]> = (0..w * h)
+        let depth: Vec<f32> = (0..w * h)
+            .map(|_| if rng.random::<f64>() < 0.2 { 0.0 } else { rng.random_range(2.0f64..40.0) as f32 })
+            .collect();
+        let normal: Vec<[f32; 3]> = (0..w * h)
             .map(|_| {
                 let n: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
                 let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-6);
-                n.map(|x| x / l)
+                n.map(|x| (x / l) as f32)
             })
             .collect();
         let mask: Vec<bool> = (0..w * h).map(|i| depth[i] > 0.0 && rng.random::<f64>() < 0.7).collect();

@@ -9,8 +9,8 @@
 //! byte per Gaussian comes back, and positions go out.
 //!
 //! It follows `Trainer::step` (the same view order, SH schedule, loss, learning rates and
-//! density control) in f32; float atomics in the backward pass make runs repeatable only to
-//! rounding, not bit for bit.
+//! density control) in f32; its sums are in fixed point (docs/cuda.md, "One seed, one result"),
+//! so a seed gives the same bits on every run.
 
 mod compose;
 mod densify;
@@ -86,6 +86,7 @@ impl<'a> DeviceTrainer<'a> {
     ) -> Result<DeviceTrainer<'a>, ReconError> {
         let k = Kernels::compile(&gpu)?;
         let s = gpu.stream().clone();
+        targets::fits(&s, views, cfg.scale)?;
         let dm = DeviceModel::upload(&s, &state)?;
         let targets = views
             .iter()

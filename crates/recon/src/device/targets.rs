@@ -2,6 +2,8 @@
 //! depth prior (0 where unknown), the normal prior already zeroed outside the supervision mask
 //! (so "used" is "non-zero reference and a rendered normal"), and the `L_geo` weights; plus the
 //! per-view constants the loss divides by (valid depth count, sum of geometry weights).
+//! Before the copy, their size is checked against the device's free memory (`fits`): a full-size
+//! log at scale 1 (a billion pixels) needs 32 GB there.
 
 use crate::data::View;
 use crate::ReconError;
@@ -21,6 +23,47 @@ fn up(s: &Arc<CudaStream>, v: Vec<f32>) -> Result<CudaSlice<f32>, DriverError> {
     s.clone_htod(&v)
 }
 
+/// Bytes `ViewTargets::upload` puts on the device for `v`.
+pub(crate) fn device_bytes(v: &View) -> u64 {
+    let t = &v.targets;
+    let per_pixel = 3
+        + t.depth.as_ref().map_or(0, |_| 1)
+        + if t.normal.is_some() && t.mask.is_some() { 3 } else { 0 }
+        + t.geo_weight.as_ref().map_or(0, |_| 1);
+    (v.width() * v.height() * per_pixel * std::mem::size_of::<f32>()) as u64
+}
+
+/// Refuses when the training views' targets need more than `memory::TARGET_SHARE` of the device's
+/// free memory (the model, its moments and the rasterizer's buffers need the rest), naming the
+/// need, the free memory and a scale that fits; `scale` is the views' training scale.
+pub(crate) fn fits(s: &Arc<CudaStream>, views: &[View], scale: f64) -> Result<(), ReconError> {
+    let need: u64 = views.iter().filter(|v| !v.held_out).map(device_bytes).sum();
+    let (free, total) = s.context().mem_get_info().map_err(|e| ReconError::Device(e.to_string()))?;
+    refuse_past(need, free as u64, total as u64, views.iter().filter(|v| !v.held_out).count(), scale)
+}
+
+/// The decision of `fits`, on plain numbers.
+pub(crate) fn refuse_past(need: u64, free: u64, total: u64, count: usize, scale: f64) -> Result<(), ReconError> {
+    use crate::memory::{human, TARGET_SHARE};
+    let budget = (free as f64 * TARGET_SHARE) as u64;
+    if need <= budget {
+        return Ok(());
+    }
+    // The targets scale with the pixels: the square of the scale.
+    let hint = match [0.5, 0.25, 0.125].into_iter().find(|f| (need as f64 * f * f) as u64 <= budget) {
+        Some(f) => format!("train at --scale {} (the `scale` key) or on fewer frames or cameras", scale * f),
+        None => "train on fewer frames or cameras".into(),
+    };
+    Err(ReconError::Memory(format!(
+        "the {count} training views' targets at scale {scale} need {} on the GPU; {} of its {} is free and the \
+         targets may take {:.0} % of it: {hint}",
+        human(need),
+        human(free),
+        human(total),
+        TARGET_SHARE * 100.0
+    )))
+}
+
 impl ViewTargets {
     pub fn upload(s: &Arc<CudaStream>, v: &View) -> Result<ViewTargets, ReconError> {
         let d = |e: DriverError| {
@@ -36,24 +79,39 @@ impl ViewTargets {
                 t.rgb.len()
             )));
         }
-        let rgb = up(s, t.rgb.iter().flatten().map(|x| *x as f32).collect()).map_err(d)?;
-        let depth = t.depth.as_ref().map(|dp| up(s, dp.iter().map(|x| *x as f32).collect())).transpose().map_err(d)?;
+        let rgb = up(s, t.rgb.as_flattened().to_vec()).map_err(d)?;
+        let depth = t.depth.as_ref().map(|dp| up(s, dp.clone())).transpose().map_err(d)?;
         let normal = match (&t.normal, &t.mask) {
-            (Some(n), Some(m)) => Some(
-                up(s, n.iter().zip(m).flat_map(|(n, m)| if *m { n.map(|x| x as f32) } else { [0.0; 3] }).collect())
-                    .map_err(d)?,
-            ),
+            (Some(n), Some(m)) => {
+                Some(up(s, n.iter().zip(m).flat_map(|(n, m)| if *m { *n } else { [0.0; 3] }).collect()).map_err(d)?)
+            }
             _ => None,
         };
-        let geo_weight =
-            t.geo_weight.as_ref().map(|w| up(s, w.iter().map(|x| *x as f32).collect())).transpose().map_err(d)?;
+        let geo_weight = t.geo_weight.as_ref().map(|w| up(s, w.clone())).transpose().map_err(d)?;
         Ok(ViewTargets {
             rgb,
             depth,
             normal,
             geo_weight,
             depth_valid: t.depth.as_ref().map_or(0, |dp| dp.iter().filter(|x| **x > 0.0).count()),
-            geo_sum: t.geo_weight.as_ref().map_or(0.0, |w| w.iter().sum()),
+            geo_sum: t.geo_weight.as_ref().map_or(0.0, |w| w.iter().map(|x| *x as f64).sum()),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::refuse_past;
+
+    #[test]
+    fn targets_past_the_free_device_memory_are_refused_with_a_scale_that_fits() {
+        const G: u64 = 1 << 30;
+        assert!(refuse_past(10 * G, 20 * G, 80 * G, 210, 1.0).is_ok());
+        let e = refuse_past(32 * G, 40 * G, 80 * G, 480, 1.0).unwrap_err().to_string();
+        for needle in ["480 training views", "32.0 GiB on the GPU", "40.0 GiB of its 80.0 GiB", "--scale 0.5"] {
+            assert!(e.contains(needle), "{needle} in {e}");
+        }
+        let e = refuse_past(32 * G, 100 << 20, 80 * G, 480, 1.0).unwrap_err().to_string();
+        assert!(e.contains("fewer frames or cameras") && !e.contains("--scale"), "{e}");
     }
 }

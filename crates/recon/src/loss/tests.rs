@@ -28,16 +28,16 @@ fn case() -> (Case, Targets) {
         normal: (0..n).map(|i| [wave(i, 5.0) - 0.5, wave(i, 6.0) - 0.5, -0.7 * wave(i, 7.0)]).collect(),
         sky: (0..n).map(|i| [wave(i, 8.0), wave(i, 9.0), wave(i, 10.0)]).collect(),
     };
-    let depth: Vec<f64> = (0..n).map(|i| if i % 5 == 0 { 0.0 } else { 5.0 + 3.0 * wave(i, 4.5) }).collect();
+    let depth: Vec<f32> = (0..n).map(|i| if i % 5 == 0 { 0.0 } else { (5.0 + 3.0 * wave(i, 4.5)) as f32 }).collect();
     let mask: Vec<bool> = (0..n).map(|i| i % 3 != 0).collect();
     let t = Targets {
-        rgb: (0..n).map(|i| [wave(i, 0.5), wave(i, 1.3), wave(i, 2.9)]).collect(),
+        rgb: (0..n).map(|i| [wave(i, 0.5), wave(i, 1.3), wave(i, 2.9)].map(|x| x as f32)).collect(),
         normal: Some(
             (0..n)
                 .map(|i| {
                     let v = [wave(i, 11.0) - 0.5, wave(i, 12.0) - 0.5, -1.0];
                     let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                    v.map(|x| x / l)
+                    v.map(|x| (x / l) as f32)
                 })
                 .collect(),
         ),
@@ -94,7 +94,7 @@ fn perfect_geometry_gives_zero_geometry_loss() {
     let (mut c, mut t) = case();
     let flat = [0.0, -1.0, 0.0];
     c.normal.iter_mut().for_each(|n| *n = flat.map(|v| v * 0.8));
-    t.normal = Some(vec![flat; c.w * c.h]);
+    t.normal = Some(vec![flat.map(|v| v as f32); c.w * c.h]);
     let mut g = ChannelGrads::default();
     let r = Rendered {
         width: c.w,

@@ -1,0 +1,182 @@
+//! The memory the training views' targets take, checked before any image is decoded. A full-size
+//! log (PandaSet: 6 cameras x 80 frames at 1920x1080, a billion pixels) at scale 1 asks for tens of
+//! GB; loading it view by view until the allocator fails ends in the kernel's OOM killer, with no
+//! message and nothing written. So the need is computed from the scene (every image's size at the
+//! training scale, times the bytes a pixel's targets take, priors included where the scene has
+//! them) and compared with what this process may use: `MemAvailable` from `/proc/meminfo`, lowered
+//! to the cgroup's limit where one is set (a Slurm job, a container), or `CARLA_GS_HOST_MEMORY`
+//! (bytes, or with a K/M/G suffix) where the user sets it. A refusal names the views, their size,
+//! the need, what is available, and the largest scale of 1/2, 1/4, 1/8 that fits.
+
+use crate::camera::scaled_size;
+use crate::error::ReconError;
+use scene::Scene;
+
+/// The share of the available memory the targets may take: the model, its Adam moments, the
+/// rasterizer's buffers and the outputs need the rest.
+pub const TARGET_SHARE: f64 = 0.7;
+
+/// The environment variable that sets the host memory budget (overrides what the system reports).
+pub const BUDGET_ENV: &str = "CARLA_GS_HOST_MEMORY";
+
+/// Bytes one pixel's targets take in memory: the image, and with priors the depth, normal,
+/// supervision mask and `L_geo` weight (`loss::Targets`).
+pub fn bytes_per_pixel(with_priors: bool) -> u64 {
+    use std::mem::size_of;
+    let rgb = size_of::<[f32; 3]>();
+    // depth, L_geo weight, normal, mask
+    let priors = size_of::<f32>() * 2 + size_of::<[f32; 3]>() + size_of::<bool>();
+    (rgb + if with_priors { priors } else { 0 }) as u64
+}
+
+/// Pixels of every image of `scene` at `scale`, and the number of images.
+pub fn pixels_at(scene: &Scene, scale: f64) -> (u64, usize) {
+    let mut pixels = 0u64;
+    let mut images = 0usize;
+    for f in &scene.frames {
+        for im in &f.images {
+            if let Some(cam) = scene.camera(&im.camera) {
+                let (w, h) = scaled_size(cam.width, cam.height, scale);
+                pixels += w as u64 * h as u64;
+                images += 1;
+            }
+        }
+    }
+    (pixels, images)
+}
+
+/// The bytes this process may use: `CARLA_GS_HOST_MEMORY` if set, else `MemAvailable` lowered to
+/// the cgroup's remaining limit; `None` where neither is known (then nothing is refused).
+pub fn available_bytes() -> Result<Option<u64>, ReconError> {
+    if let Some(v) = std::env::var_os(BUDGET_ENV) {
+        let s = v.to_string_lossy();
+        return parse_bytes(&s).map(Some).ok_or_else(|| {
+            ReconError::Config(format!("{BUDGET_ENV}={s}: expected bytes, or a number with K, M or G"))
+        });
+    }
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
+    let available = meminfo.as_deref().and_then(|m| meminfo_field(m, "MemAvailable:"));
+    let cgroup = cgroup_remaining();
+    Ok(match (available, cgroup) {
+        (Some(a), Some(c)) => Some(a.min(c)),
+        (a, c) => a.or(c),
+    })
+}
+
+/// Bytes in KiB, MiB or GiB, one decimal.
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..0x10_0000 => format!("{:.1} KiB", b / 1024.0),
+        0x10_0000..0x4000_0000 => format!("{:.1} MiB", b / (1u64 << 20) as f64),
+        _ => format!("{:.1} GiB", b / (1u64 << 30) as f64),
+    }
+}
+
+/// `<number>[K|M|G]` (binary units) in bytes.
+pub fn parse_bytes(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let (num, mult) = match s.char_indices().last()? {
+        (i, 'K' | 'k') => (&s[..i], 1u64 << 10),
+        (i, 'M' | 'm') => (&s[..i], 1 << 20),
+        (i, 'G' | 'g') => (&s[..i], 1 << 30),
+        _ => (s, 1),
+    };
+    let x: f64 = num.trim().parse().ok()?;
+    (x.is_finite() && x >= 0.0 && x * (mult as f64) < u64::MAX as f64).then_some((x * mult as f64) as u64)
+}
+
+/// A `Name:   123 kB` field of `/proc/meminfo`, in bytes.
+fn meminfo_field(meminfo: &str, name: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with(name))?;
+    let kb: u64 = line[name.len()..].trim().trim_end_matches("kB").trim().parse().ok()?;
+    kb.checked_mul(1024)
+}
+
+/// The cgroup's limit minus its current use (v2, then v1); `None` where no limit is set.
+fn cgroup_remaining() -> Option<u64> {
+    let read = |p: &str| std::fs::read_to_string(p).ok().and_then(|s| s.trim().parse::<u64>().ok());
+    let (limit, used) = match read("/sys/fs/cgroup/memory.max") {
+        Some(l) => (l, read("/sys/fs/cgroup/memory.current")?),
+        None => {
+            (read("/sys/fs/cgroup/memory/memory.limit_in_bytes")?, read("/sys/fs/cgroup/memory/memory.usage_in_bytes")?)
+        }
+    };
+    // v1 reports "no limit" as a huge number.
+    (limit < 1 << 60).then(|| limit.saturating_sub(used))
+}
+
+/// Refuses when the views of `scene` at `scale` need more than [`TARGET_SHARE`] of `available`.
+pub fn check_views(scene: &Scene, scale: f64, with_priors: bool, available: Option<u64>) -> Result<u64, ReconError> {
+    let (pixels, images) = pixels_at(scene, scale);
+    let need = pixels.saturating_mul(bytes_per_pixel(with_priors));
+    let Some(available) = available else { return Ok(need) };
+    let budget = (available as f64 * TARGET_SHARE) as u64;
+    if need <= budget {
+        return Ok(need);
+    }
+    let fits = [0.5, 0.25, 0.125]
+        .into_iter()
+        .map(|f| scale * f)
+        .find(|s| pixels_at(scene, *s).0.saturating_mul(bytes_per_pixel(with_priors)) <= budget);
+    let size = scene.cameras.iter().map(|c| scaled_size(c.width, c.height, scale)).max().unwrap_or((0, 0));
+    let hint = match fits {
+        Some(s) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),
+        None => "train on fewer frames or cameras".into(),
+    };
+    Err(ReconError::Memory(format!(
+        "the {images} views at scale {scale} (up to {}x{} pixels{}) need {} for their targets; {} is \
+         available and the targets may take {:.0} % of it ({BUDGET_ENV} sets the budget): {hint}",
+        size.0,
+        size.1,
+        if with_priors { ", with priors" } else { "" },
+        human(need),
+        human(available),
+        TARGET_SHARE * 100.0,
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_binary_suffixes() {
+        assert_eq!(parse_bytes("1024"), Some(1024));
+        assert_eq!(parse_bytes("2K"), Some(2048));
+        assert_eq!(parse_bytes("1.5G"), Some(3 << 29));
+        assert_eq!(parse_bytes(" 64 M "), Some(64 << 20));
+        for bad in ["", "G", "-1G", "lots", "1e30G", "NaN"] {
+            assert_eq!(parse_bytes(bad), None, "{bad}");
+        }
+    }
+
+    /// The estimate is the size of what `load_views` keeps: a change of a target's type changes it.
+    #[test]
+    fn bytes_per_pixel_is_what_targets_hold() {
+        let n = 10;
+        let t = crate::loss::Targets {
+            rgb: vec![Default::default(); n],
+            depth: Some(vec![Default::default(); n]),
+            normal: Some(vec![Default::default(); n]),
+            mask: Some(vec![Default::default(); n]),
+            geo_weight: Some(vec![Default::default(); n]),
+        };
+        use std::mem::size_of_val as size;
+        let priors = size(t.depth.as_deref().unwrap())
+            + size(t.normal.as_deref().unwrap())
+            + size(t.mask.as_deref().unwrap())
+            + size(t.geo_weight.as_deref().unwrap());
+        assert_eq!(bytes_per_pixel(false) * n as u64, size(t.rgb.as_slice()) as u64);
+        assert_eq!(bytes_per_pixel(true) * n as u64, (size(t.rgb.as_slice()) + priors) as u64);
+        assert_eq!(human(331_776), "324.0 KiB");
+        assert_eq!(human(34 << 30), "34.0 GiB");
+    }
+
+    #[test]
+    fn meminfo_is_read_in_bytes() {
+        let m = "MemTotal:       24000000 kB\nMemFree:  100 kB\nMemAvailable:   22000000 kB\n";
+        assert_eq!(meminfo_field(m, "MemAvailable:"), Some(22_000_000 * 1024));
+        assert_eq!(meminfo_field(m, "SwapTotal:"), None);
+    }
+}
