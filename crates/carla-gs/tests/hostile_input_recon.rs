@@ -314,4 +314,17 @@ fn views_past_the_memory_budget_are_refused_before_loading() {
     assert!(!out.exists());
     ok(with_budget("1G"));
     assert!(out.join("model.json").is_file());
+    // Scoring loads only the held-out views (frame 0's three: 27 KiB of the 81), so it fits
+    // where training does not.
+    let with = |args: &[&str], budget: &str| {
+        Command::new(env!("CARGO_BIN_EXE_carla-gs"))
+            .args(args)
+            .env(recon::memory::BUDGET_ENV, budget)
+            .output()
+            .expect("run carla-gs")
+    };
+    let report = ok(with(&["eval-recon", s(&out), s(&scene), "--json"], "60K"));
+    let report: Value = serde_json::from_str(&report).unwrap();
+    assert_eq!(report["views"], 3, "{report}");
+    refused(with(&["train", s(&scene), "--out", s(&out), "--iters", "5", "--force"], "60K"), &["9 views"]);
 }

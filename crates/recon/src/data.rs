@@ -40,6 +40,23 @@ pub fn is_held_out(frame: usize, every: usize) -> bool {
     every > 0 && frame.is_multiple_of(every)
 }
 
+/// Which views to load: all (training), or the ones scoring uses (`eval-recon`: the held-out
+/// views, or every view when the split holds none out), which spares loading the training views'
+/// images and priors (seven in eight of them under the default split).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViewSet {
+    All,
+    Scored,
+}
+
+impl ViewSet {
+    /// Whether the views of frame `frame` of `scene` are in the set under the every-n-th split.
+    pub fn keeps(self, scene: &Scene, every: usize) -> impl Fn(usize) -> bool {
+        let any_held = scene.frames.iter().any(|f| is_held_out(f.index, every));
+        move |frame| self == ViewSet::All || !any_held || is_held_out(frame, every)
+    }
+}
+
 /// Loads camera `cam`'s image as RGB in 0..1, resized to `width x height` (area-like triangle
 /// filter); an image of another size than the camera's, or a truncated JPEG, is refused.
 pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Result<Vec<[f32; 3]>, ReconError> {
@@ -56,17 +73,19 @@ pub fn load_rgb(path: &Path, cam: &scene::Camera, width: u32, height: u32) -> Re
 /// Extra per-view targets (the priors), loaded at the view's size; `None` when there are none.
 pub type PriorLoader<'a> = dyn Fn(&View) -> Result<Option<Targets>, ReconError> + Sync + 'a;
 
-/// Every image of the scene as a view at `scale`.
+/// Every image of the scene in `set` as a view at `scale`.
 pub fn load_views(
     scene_dir: &Path,
     scene: &Scene,
     scale: f64,
     held_out_every: usize,
+    set: ViewSet,
     priors: &PriorLoader,
     progress: &ProgressBar,
 ) -> Result<Vec<View>, ReconError> {
+    let keep = set.keeps(scene, held_out_every);
     let mut jobs = Vec::new();
-    for f in &scene.frames {
+    for f in scene.frames.iter().filter(|f| keep(f.index)) {
         for im in &f.images {
             let cam = scene
                 .camera(&im.camera)

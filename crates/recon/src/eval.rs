@@ -216,8 +216,9 @@ pub fn evaluate<B: Backend>(
     })
 }
 
-/// A model directory and its scene, loaded for scoring: the model, the scene, and its views under
-/// the model's split and scale; refused when the model was trained on another scene.
+/// A model directory and its scene, loaded for scoring: the model, the scene, and the views scoring
+/// uses (`ViewSet::Scored`) under the model's split and scale; refused when the model was trained
+/// on another scene.
 pub fn load_model_and_views(
     model_dir: &Path,
     scene_dir: &Path,
@@ -225,7 +226,7 @@ pub fn load_model_and_views(
 ) -> Result<(SceneModel, Scene, Vec<View>), ReconError> {
     let (model, record) = crate::model_io::load_model(model_dir)?;
     let cfg = crate::model_io::load_config(model_dir)?;
-    let (scene, views) = crate::session::prepare(scene_dir, &cfg, priors)?;
+    let (scene, views) = crate::session::prepare_views(scene_dir, &cfg, priors, crate::data::ViewSet::Scored)?;
     if scene.name != record.scene_name {
         return Err(ReconError::Input(format!(
             "{}: model was trained on scene {:?}, not {:?}",

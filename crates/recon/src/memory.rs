@@ -29,11 +29,11 @@ pub fn bytes_per_pixel(with_priors: bool) -> u64 {
     (rgb + if with_priors { priors } else { 0 }) as u64
 }
 
-/// Pixels of every image of `scene` at `scale`, and the number of images.
-pub fn pixels_at(scene: &Scene, scale: f64) -> (u64, usize) {
+/// Pixels of every image of `scene` at `scale` in the frames `keep` keeps, and the number of images.
+pub fn pixels_at(scene: &Scene, scale: f64, keep: &dyn Fn(usize) -> bool) -> (u64, usize) {
     let mut pixels = 0u64;
     let mut images = 0usize;
-    for f in &scene.frames {
+    for f in scene.frames.iter().filter(|f| keep(f.index)) {
         for im in &f.images {
             if let Some(cam) = scene.camera(&im.camera) {
                 let (w, h) = scaled_size(cam.width, cam.height, scale);
@@ -106,9 +106,16 @@ fn cgroup_remaining() -> Option<u64> {
     (limit < 1 << 60).then(|| limit.saturating_sub(used))
 }
 
-/// Refuses when the views of `scene` at `scale` need more than [`TARGET_SHARE`] of `available`.
-pub fn check_views(scene: &Scene, scale: f64, with_priors: bool, available: Option<u64>) -> Result<u64, ReconError> {
-    let (pixels, images) = pixels_at(scene, scale);
+/// Refuses when the views of `scene` at `scale` in the frames `keep` keeps need more than
+/// [`TARGET_SHARE`] of `available`.
+pub fn check_views(
+    scene: &Scene,
+    scale: f64,
+    with_priors: bool,
+    keep: &dyn Fn(usize) -> bool,
+    available: Option<u64>,
+) -> Result<u64, ReconError> {
+    let (pixels, images) = pixels_at(scene, scale, keep);
     let need = pixels.saturating_mul(bytes_per_pixel(with_priors));
     let Some(available) = available else { return Ok(need) };
     let budget = (available as f64 * TARGET_SHARE) as u64;
@@ -118,7 +125,7 @@ pub fn check_views(scene: &Scene, scale: f64, with_priors: bool, available: Opti
     let fits = [0.5, 0.25, 0.125]
         .into_iter()
         .map(|f| scale * f)
-        .find(|s| pixels_at(scene, *s).0.saturating_mul(bytes_per_pixel(with_priors)) <= budget);
+        .find(|s| pixels_at(scene, *s, keep).0.saturating_mul(bytes_per_pixel(with_priors)) <= budget);
     let size = scene.cameras.iter().map(|c| scaled_size(c.width, c.height, scale)).max().unwrap_or((0, 0));
     let hint = match fits {
         Some(s) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),

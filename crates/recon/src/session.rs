@@ -6,7 +6,7 @@
 use crate::backend::Backend;
 use crate::checkpoint::{self, TrainState};
 use crate::config::TrainConfig;
-use crate::data::{load_views, PriorLoader, View};
+use crate::data::{load_views, PriorLoader, View, ViewSet};
 use crate::device::DeviceTrainer;
 use crate::error::ReconError;
 use crate::init::{initialise, scene_extent, InitReport};
@@ -47,15 +47,27 @@ pub struct TrainSummary {
     pub already_finished: bool,
 }
 
-/// Loads the scene's views at the config's scale.
+/// Loads the scene's views at the config's scale, for training.
 pub fn prepare(scene_dir: &Path, cfg: &TrainConfig, priors: &PriorLoader) -> Result<(Scene, Vec<View>), ReconError> {
-    let scene = scene::load_scene(scene_dir)?;
-    let with_priors = scene_dir.join("priors").join("priors.json").is_file();
-    crate::memory::check_views(&scene, cfg.scale, with_priors, crate::memory::available_bytes()?)?;
-    let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, priors, &ProgressBar::hidden())?;
+    let (scene, views) = prepare_views(scene_dir, cfg, priors, ViewSet::All)?;
     if views.iter().all(|v| v.held_out) {
         return Err(ReconError::Input(format!("{}: every view is held out; nothing to train on", scene_dir.display())));
     }
+    Ok((scene, views))
+}
+
+/// Loads the views of `set` at the config's scale, once their memory is checked (`memory`).
+pub fn prepare_views(
+    scene_dir: &Path,
+    cfg: &TrainConfig,
+    priors: &PriorLoader,
+    set: ViewSet,
+) -> Result<(Scene, Vec<View>), ReconError> {
+    let scene = scene::load_scene(scene_dir)?;
+    let with_priors = scene_dir.join("priors").join("priors.json").is_file();
+    let keep = set.keeps(&scene, cfg.held_out_every);
+    crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, crate::memory::available_bytes()?)?;
+    let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, set, priors, &ProgressBar::hidden())?;
     Ok((scene, views))
 }
 
