@@ -3,10 +3,11 @@
 //! GB; loading it view by view until the allocator fails ends in the kernel's OOM killer, with no
 //! message and nothing written. So the need is computed from the scene (every image's size at the
 //! training scale, times the bytes a pixel's targets take, priors included where the scene has
-//! them) and compared with what this process may use: `MemAvailable` from `/proc/meminfo`, lowered
-//! to the cgroup's limit where one is set (a Slurm job, a container), or `CARLA_GS_HOST_MEMORY`
-//! (bytes, or with a K/M/G suffix) where the user sets it. A refusal names the views, their size,
-//! the need, what is available, and the largest scale of 1/2, 1/4, 1/8 that fits.
+//! them) and compared with what this process may use: `MemAvailable` from `/proc/meminfo`,
+//! lowered to what its cgroups leave where they set a limit (a Slurm job, a container), or
+//! `CARLA_GS_HOST_MEMORY` (bytes, or with a K/M/G suffix) where the user sets it. A refusal names
+//! the views, their size, the need, what is available, and the largest scale of 1/2, 1/4, 1/8 that
+//! fits.
 
 use crate::camera::scaled_size;
 use crate::error::ReconError;
@@ -56,7 +57,9 @@ pub fn available_bytes() -> Result<Option<u64>, ReconError> {
     }
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
     let available = meminfo.as_deref().and_then(|m| meminfo_field(m, "MemAvailable:"));
-    let cgroup = cgroup_remaining();
+    let cgroup = std::fs::read_to_string("/proc/self/cgroup")
+        .ok()
+        .and_then(|c| cgroup_remaining(std::path::Path::new("/sys/fs/cgroup"), &c));
     Ok(match (available, cgroup) {
         (Some(a), Some(c)) => Some(a.min(c)),
         (a, c) => a.or(c),
@@ -93,17 +96,38 @@ fn meminfo_field(meminfo: &str, name: &str) -> Option<u64> {
     kb.checked_mul(1024)
 }
 
-/// The cgroup's limit minus its current use (v2, then v1); `None` where no limit is set.
-fn cgroup_remaining() -> Option<u64> {
-    let read = |p: &str| std::fs::read_to_string(p).ok().and_then(|s| s.trim().parse::<u64>().ok());
-    let (limit, used) = match read("/sys/fs/cgroup/memory.max") {
-        Some(l) => (l, read("/sys/fs/cgroup/memory.current")?),
-        None => {
-            (read("/sys/fs/cgroup/memory/memory.limit_in_bytes")?, read("/sys/fs/cgroup/memory/memory.usage_in_bytes")?)
+/// What this process's cgroups leave (limit minus use, the least over the group and its
+/// ancestors: a Slurm job's limit sits on the job, its steps below it), from `/proc/self/cgroup`
+/// (`proc_cgroup`) under the cgroup mount `root`: v2 (`0::<path>`: `memory.max`,
+/// `memory.current`) or v1 (the `memory` controller's line: `memory/<path>/memory.limit_in_bytes`,
+/// `memory.usage_in_bytes`). `None` where no level sets a limit or none can be read.
+pub fn cgroup_remaining(root: &std::path::Path, proc_cgroup: &str) -> Option<u64> {
+    let read = |p: std::path::PathBuf| std::fs::read_to_string(p).ok().and_then(|s| s.trim().parse::<u64>().ok());
+    let mut least: Option<u64> = None;
+    for line in proc_cgroup.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (Some(_), Some(controllers), Some(path)) = (parts.next(), parts.next(), parts.next()) else { continue };
+        let (base, limit_file, use_file) = if controllers.is_empty() {
+            (root.to_path_buf(), "memory.max", "memory.current")
+        } else if controllers.split(',').any(|c| c == "memory") {
+            (root.join("memory"), "memory.limit_in_bytes", "memory.usage_in_bytes")
+        } else {
+            continue;
+        };
+        let mut dir = Some(std::path::Path::new(path.trim_start_matches('/')));
+        while let Some(d) = dir {
+            let at = base.join(d);
+            // "max" (v2) does not parse; v1 reports no limit as a number near 2^63.
+            if let (Some(limit), Some(used)) = (read(at.join(limit_file)), read(at.join(use_file))) {
+                if limit < 1 << 60 {
+                    let left = limit.saturating_sub(used);
+                    least = Some(least.map_or(left, |l| l.min(left)));
+                }
+            }
+            dir = d.parent();
         }
-    };
-    // v1 reports "no limit" as a huge number.
-    (limit < 1 << 60).then(|| limit.saturating_sub(used))
+    }
+    least
 }
 
 /// Refuses when the views of `scene` at `scale` in the frames `keep` keeps need more than
@@ -178,6 +202,33 @@ mod tests {
         assert_eq!(bytes_per_pixel(true) * n as u64, (size(t.rgb.as_slice()) + priors) as u64);
         assert_eq!(human(331_776), "324.0 KiB");
         assert_eq!(human(34 << 30), "34.0 GiB");
+    }
+
+    /// A limit on a parent group counts (a Slurm job's, with the step below it), "max" and v1's
+    /// near-2^63 mean none, and v1's memory controller is found among the others.
+    #[test]
+    fn cgroup_limits_are_read_up_the_hierarchy() {
+        let tmp = tempfile::tempdir().unwrap();
+        let put = |rel: &str, v: &str| {
+            let p = tmp.path().join(rel);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, v).unwrap();
+        };
+        put("job/memory.max", "8000\n");
+        put("job/memory.current", "3000\n");
+        put("job/step/memory.max", "max\n");
+        put("job/step/memory.current", "2000\n");
+        put("memory.max", "max\n");
+        put("memory.current", "1\n");
+        assert_eq!(cgroup_remaining(tmp.path(), "0::/job/step\n"), Some(5000));
+        assert_eq!(cgroup_remaining(tmp.path(), "0::/\n"), None);
+        put("memory/app/memory.limit_in_bytes", "9223372036854771712");
+        put("memory/app/memory.usage_in_bytes", "10");
+        put("memory/memory.limit_in_bytes", "1000");
+        put("memory/memory.usage_in_bytes", "10");
+        let v1 = "9:name=systemd:/\n4:cpuacct,memory:/app\n0::/elsewhere\n";
+        assert_eq!(cgroup_remaining(tmp.path(), v1), Some(990));
+        assert_eq!(cgroup_remaining(tmp.path(), "garbage\n"), None);
     }
 
     #[test]
