@@ -19,8 +19,8 @@ pub(crate) struct ViewTargets {
     pub geo_sum: f64,
 }
 
-fn up(s: &Arc<CudaStream>, v: Vec<f32>) -> Result<CudaSlice<f32>, DriverError> {
-    s.clone_htod(&v)
+fn up(s: &Arc<CudaStream>, v: &[f32]) -> Result<CudaSlice<f32>, DriverError> {
+    s.clone_htod(v)
 }
 
 /// Bytes `ViewTargets::upload` puts on the device for `v`.
@@ -79,15 +79,16 @@ impl ViewTargets {
                 t.rgb.len()
             )));
         }
-        let rgb = up(s, t.rgb.as_flattened().to_vec()).map_err(d)?;
-        let depth = t.depth.as_ref().map(|dp| up(s, dp.clone())).transpose().map_err(d)?;
+        let rgb = up(s, t.rgb.as_flattened()).map_err(d)?;
+        let depth = t.depth.as_ref().map(|dp| up(s, dp)).transpose().map_err(d)?;
         let normal = match (&t.normal, &t.mask) {
             (Some(n), Some(m)) => {
-                Some(up(s, n.iter().zip(m).flat_map(|(n, m)| if *m { *n } else { [0.0; 3] }).collect()).map_err(d)?)
+                let masked: Vec<f32> = n.iter().zip(m).flat_map(|(n, m)| if *m { *n } else { [0.0; 3] }).collect();
+                Some(up(s, &masked).map_err(d)?)
             }
             _ => None,
         };
-        let geo_weight = t.geo_weight.as_ref().map(|w| up(s, w.clone())).transpose().map_err(d)?;
+        let geo_weight = t.geo_weight.as_ref().map(|w| up(s, w)).transpose().map_err(d)?;
         Ok(ViewTargets {
             rgb,
             depth,
