@@ -47,7 +47,8 @@ pub fn pixels_at(scene: &Scene, scale: f64, keep: &dyn Fn(usize) -> bool) -> (u6
 }
 
 /// The bytes this process may use: `CARLA_GS_HOST_MEMORY` if set, else `MemAvailable` lowered to
-/// the cgroup's remaining limit; `None` where neither is known (then nothing is refused).
+/// what its cgroups leave ([`cgroup_remaining`]); `None` where neither is known (then nothing is
+/// refused).
 pub fn available_bytes() -> Result<Option<u64>, ReconError> {
     if let Some(v) = std::env::var_os(BUDGET_ENV) {
         let s = v.to_string_lossy();
