@@ -327,4 +327,9 @@ fn views_past_the_memory_budget_are_refused_before_loading() {
     let report: Value = serde_json::from_str(&report).unwrap();
     assert_eq!(report["views"], 3, "{report}");
     refused(with(&["train", s(&scene), "--out", s(&out), "--iters", "5", "--force"], "60K"), &["9 views"]);
+    // Scoring cannot choose the scale: the refusal says whose it is.
+    refused(
+        with(&["eval-recon", s(&out), s(&scene)], "20K"),
+        &["3 views at scale 0.5", "the model was trained at scale 0.5"],
+    );
 }

@@ -132,12 +132,14 @@ pub fn cgroup_remaining(root: &std::path::Path, proc_cgroup: &str) -> Option<u64
 }
 
 /// Refuses when the views of `scene` at `scale` in the frames `keep` keeps need more than
-/// [`TARGET_SHARE`] of `available`.
+/// [`TARGET_SHARE`] of `available`. `training`: the scale can be chosen (the refusal names one that
+/// fits); else it is a trained model's (scoring), and the refusal says so.
 pub fn check_views(
     scene: &Scene,
     scale: f64,
     with_priors: bool,
     keep: &dyn Fn(usize) -> bool,
+    training: bool,
     available: Option<u64>,
 ) -> Result<u64, ReconError> {
     let (pixels, images) = pixels_at(scene, scale, keep);
@@ -152,9 +154,10 @@ pub fn check_views(
         .map(|f| scale * f)
         .find(|s| pixels_at(scene, *s, keep).0.saturating_mul(bytes_per_pixel(with_priors)) <= budget);
     let size = scene.cameras.iter().map(|c| scaled_size(c.width, c.height, scale)).max().unwrap_or((0, 0));
-    let hint = match fits {
-        Some(s) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),
-        None => "train on fewer frames or cameras".into(),
+    let hint = match (training, fits) {
+        (false, _) => format!("the model was trained at scale {scale}: score it where more memory is free"),
+        (true, Some(s)) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),
+        (true, None) => "train on fewer frames or cameras".into(),
     };
     Err(ReconError::Memory(format!(
         "the {images} views at scale {scale} (up to {}x{} pixels{}) need {} for their targets; {} is \

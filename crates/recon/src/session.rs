@@ -66,7 +66,8 @@ pub fn prepare_views(
     let scene = scene::load_scene(scene_dir)?;
     let with_priors = scene_dir.join("priors").join("priors.json").is_file();
     let keep = set.keeps(&scene, cfg.held_out_every);
-    crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, crate::memory::available_bytes()?)?;
+    let training = set == ViewSet::All;
+    crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, training, crate::memory::available_bytes()?)?;
     let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, set, priors, &ProgressBar::hidden())?;
     Ok((scene, views))
 }
