@@ -296,13 +296,14 @@ fn views_past_the_memory_budget_are_refused_before_loading() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = synth(tmp.path(), "s", "1");
     let out = tmp.path().join("m");
-    let with_budget = |budget: &str| {
+    let with = |args: &[&str], budget: &str| {
         Command::new(env!("CARGO_BIN_EXE_carla-gs"))
-            .args(["train", s(&scene), "--out", s(&out), "--iters", "5"])
+            .args(args)
             .env(recon::memory::BUDGET_ENV, budget)
             .output()
             .expect("run carla-gs")
     };
+    let with_budget = |budget: &str| with(&["train", s(&scene), "--out", s(&out), "--iters", "5"], budget);
     // 9 views of 64x48 at the default scale 0.5 (32x24), 12 bytes a pixel (no priors): 81 KiB;
     // 70 % of 100 KiB is 70 KiB, and scale 0.25 (16x12) needs 20 KiB.
     refused(
@@ -316,13 +317,6 @@ fn views_past_the_memory_budget_are_refused_before_loading() {
     assert!(out.join("model.json").is_file());
     // Scoring loads only the held-out views (frame 0's three: 27 KiB of the 81), so it fits
     // where training does not.
-    let with = |args: &[&str], budget: &str| {
-        Command::new(env!("CARGO_BIN_EXE_carla-gs"))
-            .args(args)
-            .env(recon::memory::BUDGET_ENV, budget)
-            .output()
-            .expect("run carla-gs")
-    };
     let report = ok(with(&["eval-recon", s(&out), s(&scene), "--json"], "60K"));
     let report: Value = serde_json::from_str(&report).unwrap();
     assert_eq!(report["views"], 3, "{report}");

@@ -131,6 +131,29 @@ pub fn cgroup_remaining(root: &std::path::Path, proc_cgroup: &str) -> Option<u64
     least
 }
 
+/// `None` when `need` bytes fit [`TARGET_SHARE`] of `available`; else what to do: a trained
+/// model's scale is fixed (`!training`); a training scale can drop to the largest of 1/2, 1/4 or 1/8
+/// of `scale` whose need (`need_at(that scale)`) fits.
+pub fn over_budget(
+    need: u64,
+    available: u64,
+    scale: f64,
+    training: bool,
+    need_at: &dyn Fn(f64) -> u64,
+) -> Option<String> {
+    let budget = (available as f64 * TARGET_SHARE) as u64;
+    if need <= budget {
+        return None;
+    }
+    if !training {
+        return Some(format!("the model was trained at scale {scale}: score it where more memory is free"));
+    }
+    Some(match [0.5, 0.25, 0.125].into_iter().map(|f| scale * f).find(|s| need_at(*s) <= budget) {
+        Some(s) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),
+        None => "train on fewer frames or cameras".into(),
+    })
+}
+
 /// Refuses when the views of `scene` at `scale` in the frames `keep` keeps need more than
 /// [`TARGET_SHARE`] of `available`. `training`: the scale can be chosen (the refusal names one that
 /// fits); else it is a trained model's (scoring), and the refusal says so.
@@ -142,23 +165,12 @@ pub fn check_views(
     training: bool,
     available: Option<u64>,
 ) -> Result<u64, ReconError> {
-    let (pixels, images) = pixels_at(scene, scale, keep);
-    let need = pixels.saturating_mul(bytes_per_pixel(with_priors));
+    let need_at = |s: f64| pixels_at(scene, s, keep).0.saturating_mul(bytes_per_pixel(with_priors));
+    let need = need_at(scale);
     let Some(available) = available else { return Ok(need) };
-    let budget = (available as f64 * TARGET_SHARE) as u64;
-    if need <= budget {
-        return Ok(need);
-    }
-    let fits = [0.5, 0.25, 0.125]
-        .into_iter()
-        .map(|f| scale * f)
-        .find(|s| pixels_at(scene, *s, keep).0.saturating_mul(bytes_per_pixel(with_priors)) <= budget);
+    let Some(hint) = over_budget(need, available, scale, training, &need_at) else { return Ok(need) };
+    let images = pixels_at(scene, scale, keep).1;
     let size = scene.cameras.iter().map(|c| scaled_size(c.width, c.height, scale)).max().unwrap_or((0, 0));
-    let hint = match (training, fits) {
-        (false, _) => format!("the model was trained at scale {scale}: score it where more memory is free"),
-        (true, Some(s)) => format!("train at --scale {s} (the `scale` key) or on fewer frames or cameras"),
-        (true, None) => "train on fewer frames or cameras".into(),
-    };
     Err(ReconError::Memory(format!(
         "the {images} views at scale {scale} (up to {}x{} pixels{}) need {} for their targets; {} is \
          available and the targets may take {:.0} % of it ({BUDGET_ENV} sets the budget): {hint}",

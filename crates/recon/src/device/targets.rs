@@ -37,23 +37,18 @@ pub(crate) fn device_bytes(v: &View) -> u64 {
 /// free memory (the model, its moments and the rasterizer's buffers need the rest), naming the
 /// need, the free memory and a scale that fits; `scale` is the views' training scale.
 pub(crate) fn fits(s: &Arc<CudaStream>, views: &[View], scale: f64) -> Result<(), ReconError> {
-    let need: u64 = views.iter().filter(|v| !v.held_out).map(device_bytes).sum();
+    let training: Vec<&View> = views.iter().filter(|v| !v.held_out).collect();
+    let need: u64 = training.iter().map(|v| device_bytes(v)).sum();
     let (free, total) = s.context().mem_get_info().map_err(|e| ReconError::Device(e.to_string()))?;
-    refuse_past(need, free as u64, total as u64, views.iter().filter(|v| !v.held_out).count(), scale)
+    refuse_past(need, free as u64, total as u64, training.len(), scale)
 }
 
 /// The decision of `fits`, on plain numbers.
 pub(crate) fn refuse_past(need: u64, free: u64, total: u64, count: usize, scale: f64) -> Result<(), ReconError> {
-    use crate::memory::{human, TARGET_SHARE};
-    let budget = (free as f64 * TARGET_SHARE) as u64;
-    if need <= budget {
-        return Ok(());
-    }
+    use crate::memory::{human, over_budget, TARGET_SHARE};
     // The targets scale with the pixels: the square of the scale.
-    let hint = match [0.5, 0.25, 0.125].into_iter().find(|f| (need as f64 * f * f) as u64 <= budget) {
-        Some(f) => format!("train at --scale {} (the `scale` key) or on fewer frames or cameras", scale * f),
-        None => "train on fewer frames or cameras".into(),
-    };
+    let need_at = |s: f64| (need as f64 * (s / scale).powi(2)) as u64;
+    let Some(hint) = over_budget(need, free, scale, true, &need_at) else { return Ok(()) };
     Err(ReconError::Memory(format!(
         "the {count} training views' targets at scale {scale} need {} on the GPU; {} of its {} is free and the \
          targets may take {:.0} % of it: {hint}",
