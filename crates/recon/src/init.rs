@@ -3,7 +3,8 @@
 //! each tracked object gets the LiDAR points inside its box (in its box frame) above the road band
 //! at its floor ([`ACTOR_FLOOR_M`]), topped up with
 //! random points inside the box. Points are voxel-thinned and capped (seeded), coloured from the
-//! first view that sees them, and get the 3DGS start: scale = RMS distance to the three nearest
+//! first training view near their frame that sees them (never a held-out view, whose pixels the
+//! model is scored on), and get the 3DGS start: scale = RMS distance to the three nearest
 //! neighbours, low opacity, SH DC from the colour; where the neighbours are planar the Gaussian
 //! starts as a thin disc in the surface (`surface.rs`), elsewhere as an isotropic ball.
 
@@ -50,9 +51,30 @@ pub fn scene_extent(views: &[View]) -> f64 {
     1.1 * centres.iter().map(|c| (*c - mean).length()).fold(0.0, f64::max).max(1e-3)
 }
 
-/// The colour a world point has in the first view of `frame` (or any view) that sees it.
-fn colour_of(p: DVec3, views: &[&View]) -> Option<[f64; 3]> {
-    views.iter().find_map(|v| {
+/// Frames at most this far from a LiDAR sweep's frame lend its points their colours.
+pub const COLOUR_FRAMES: usize = 2;
+
+/// The views a LiDAR point of frame `frame` takes its colour from: the **training** views of the
+/// frames at most [`COLOUR_FRAMES`] away, the sweep's own frame first, then the earlier and later
+/// neighbours in turn. A held-out image never colours (or selects) a starting Gaussian: its pixels
+/// are what the model is scored on. (A log whose sweeps sit on the held-out frames, as PandaSet 002's
+/// nine do under the every-8th split, takes its colours from the frames beside them.)
+fn colouring_views(views: &[View], frame: usize) -> Vec<&View> {
+    let mut near: Vec<(i64, usize, &View)> = views
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| !v.held_out && v.frame.abs_diff(frame) <= COLOUR_FRAMES)
+        .map(|(i, v)| (v.frame as i64 - frame as i64, i, v))
+        .collect();
+    near.sort_by_key(|(d, i, _)| (d.abs(), *d, *i));
+    near.into_iter().map(|(_, _, v)| v).collect()
+}
+
+/// The colour a point has in the first of `views` that sees it; `world_at(k)` places the point at
+/// the time of `views[k]` (a point on a moving car moves with its box), `None` where it cannot.
+fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View]) -> Option<[f64; 3]> {
+    views.iter().enumerate().find_map(|(k, v)| {
+        let p = world_at(k)?;
         let c = v.cam.to_camera(p.into());
         if c[2] <= v.cam.near {
             return None;
@@ -153,29 +175,42 @@ pub fn initialise(
                 box_pose_at(scene, t, f.timestamp_s).zip(size).map(|(p, s)| (p.world_from_box().inverse(), s))
             })
             .collect();
-        let mut add = |p_world: DVec3, colour: [f64; 3]| {
-            for (ti, pose) in poses.iter().enumerate() {
-                if let Some((box_from_world, s)) = pose {
-                    let b = box_from_world.transform_point(p_world);
-                    if b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2] {
-                        if b.z >= -0.5 * s[2] + ACTOR_FLOOR_M {
-                            actor_points[ti].push((b, colour));
-                        } else {
-                            bg_points.push((p_world, colour));
-                        }
-                        return;
-                    }
-                }
-            }
-            bg_points.push((p_world, colour));
+        // A point's home: the first box that holds it (the point in that box's frame), above the
+        // road band at the box's floor; `None` for the background.
+        let home = |p_world: DVec3| {
+            poses.iter().enumerate().find_map(|(ti, pose)| {
+                let (box_from_world, s) = pose.as_ref()?;
+                let b = box_from_world.transform_point(p_world);
+                (b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2]).then_some((
+                    ti,
+                    b,
+                    b.z >= -0.5 * s[2] + ACTOR_FLOOR_M,
+                ))
+            })
+        };
+        let mut add = |p_world: DVec3, on_actor: Option<(usize, DVec3)>, colour: [f64; 3]| match on_actor {
+            Some((ti, b)) => actor_points[ti].push((b, colour)),
+            None => bg_points.push((p_world, colour)),
         };
         if let Some(l) = &f.lidar {
             source = "lidar";
+            let lend = colouring_views(views, f.index);
+            // Each track's box at each lending view's time: a point on a moving car is looked up
+            // where the car was when that view was taken.
+            let world_from_box: Vec<Vec<Option<scene::Transform3>>> = tracks
+                .iter()
+                .map(|t| lend.iter().map(|v| box_pose_at(scene, t, v.time).map(|p| p.world_from_box())).collect())
+                .collect();
             let pts = scene::format::read_lidar(&scene_dir.join(&l.path))?;
             for p in pts {
                 let pw = f.world_from_ego.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
-                if let Some(c) = colour_of(pw, &fviews) {
-                    add(pw, c);
+                let on_actor = home(pw).filter(|h| h.2).map(|(ti, b, _)| (ti, b));
+                let colour = match on_actor {
+                    None => colour_of(|_| Some(pw), &lend),
+                    Some((ti, b)) => colour_of(|k| world_from_box[ti][k].map(|m| m.transform_point(b)), &lend),
+                };
+                if let Some(c) = colour {
+                    add(pw, on_actor, c);
                 }
             }
         } else {
@@ -193,7 +228,9 @@ pub fn initialise(
                             [(x as f64 + 0.5 - v.cam.cx) / v.cam.fx * d, (y as f64 + 0.5 - v.cam.cy) / v.cam.fy * d, d];
                         let m = &v.cam.camera_from_world;
                         let pw: [f64; 3] = std::array::from_fn(|c| (0..3).map(|r| m[r][c] * (pc[r] - m[r][3])).sum());
-                        add(DVec3::from(pw), v.targets.rgb[y * v.width() + x].map(f64::from));
+                        let pw = DVec3::from(pw);
+                        let on_actor = home(pw).filter(|h| h.2).map(|(ti, b, _)| (ti, b));
+                        add(pw, on_actor, v.targets.rgb[y * v.width() + x].map(f64::from));
                     }
                 }
             }
