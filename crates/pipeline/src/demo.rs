@@ -7,7 +7,9 @@
 //!
 //! Every stage is cached (`cache`): its directory's marker holds the settings it was built from
 //! and the key of the stage before, so a second run with the same settings reuses everything
-//! and takes seconds, and a changed setting rebuilds that stage and the ones after it. A training
+//! and takes seconds, and a changed setting rebuilds that stage and the ones after it. The first
+//! key also holds the input folder's fingerprint and the program's ([`scene_key`]): an edited
+//! log or a rebuilt carla-gs rebuilds everything. A training
 //! run interrupted half-way resumes from its checkpoint.
 
 use crate::cache::{fresh, invalidate, mark};
@@ -127,6 +129,25 @@ impl Stages<'_> {
     }
 }
 
+/// The first stage's cache key, which every later stage's holds: the synthetic street's settings,
+/// or the input folder with its files' fingerprint (the demo's own `out` left out where it lies
+/// inside); and the program's (`fingerprint`), so neither an edited log nor a rebuilt carla-gs
+/// reuses stages made before.
+pub fn scene_key(cfg: &DemoConfig, out: &Path) -> Result<Value, PipelineError> {
+    let program = crate::fingerprint::program();
+    Ok(match &cfg.input {
+        None => json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
+            "height": cfg.height, "seed": cfg.scene_seed}, "program": program, "version": 2}),
+        Some(input) => {
+            let input = std::fs::canonicalize(input).map_err(PipelineError::io(input))?;
+            let out = std::fs::canonicalize(out).unwrap_or_else(|_| out.to_path_buf());
+            let files = crate::fingerprint::folder(&input, |p| p.starts_with(&out))
+                .map_err(|e| PipelineError::stage("ingest the log", e))?;
+            json!({"input": input, "files": files, "program": program, "version": 2})
+        }
+    })
+}
+
 /// Runs the demo into `out` (created if needed) and writes `report.html` there.
 pub fn run_demo(cfg: &DemoConfig, out: &Path, progress: &dyn DemoProgress) -> Result<DemoResult, PipelineError> {
     run_demo_on(&CpuF32, cfg, out, progress)
@@ -154,11 +175,7 @@ pub fn run_demo_on<B: Backend + Clone>(
         preview: false,
     };
 
-    let scene_key = match &cfg.input {
-        None => json!({"synth": {"frames": cfg.frames, "cameras": cfg.cameras, "width": cfg.width,
-            "height": cfg.height, "seed": cfg.scene_seed}, "version": 1}),
-        Some(input) => json!({"input": std::fs::canonicalize(input).map_err(PipelineError::io(input))?, "version": 1}),
-    };
+    let scene_key = scene_key(cfg, out)?;
     if let Some(input) = &cfg.input {
         stages.cached("ingest the log", &scene_dir, &scene_key, || {
             let pb = progress.bar();

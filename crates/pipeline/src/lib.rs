@@ -8,6 +8,7 @@ pub mod cache;
 pub mod case;
 pub mod demo;
 pub mod error;
+pub mod fingerprint;
 pub mod outputs;
 pub mod real_log;
 pub mod replace_check;

@@ -1,10 +1,12 @@
 //! `carla-gs batch exec <plan.json> <node>`: runs one node of a plan, idempotently. A node that
 //! finished leaves a stamp (`<out>/.batch/<node>.json`): its key (the node's arguments and
-//! environment and a fingerprint of every input: each file's path, size and modification time,
-//! hashed) and its exit code. The next exec skips the node when the stamp holds the same key and
-//! every output exists; anything else (no stamp, a changed input or setting, a removed output)
-//! runs it again. Our commands swap their outputs in whole, so a re-run upstream node changes
-//! its outputs' times and with them every downstream key.
+//! environment, a fingerprint of every input: each file's path, size and modification time,
+//! hashed, and the program's: `crate::fingerprint`) and its exit code. The next exec skips the
+//! node when the stamp holds the same key and every output exists; anything else (no stamp, a
+//! changed input or setting, a removed output, another carla-gs binary) runs it again. Our
+//! commands swap their outputs in whole, so a re-run upstream node changes its outputs' times and
+//! with them every downstream key. (Workers that each hold their own copy of the binary count as
+//! other programs: give them one shared file, as a Slurm job on a shared file system does.)
 //!
 //! Exit codes are the command's: 0 done, 3 no case possible (stamped: a final outcome, not a
 //! failure to retry), 2 bad input; a killed command leaves no stamp.
@@ -13,15 +15,12 @@ use super::plan::{Node, Plan, PLAN_FORMAT, PLAN_VERSION};
 use super::BatchError;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
-use std::hash::Hasher;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub const STAMP_DIR: &str = ".batch";
 /// A plan larger than this is not one (100k logs x 4 stages is about 200 MB: split it).
 pub const MAX_PLAN_BYTES: u64 = 1 << 30;
-/// Files fingerprinted per input at most (a scene of 3 cameras x 80 frames has ~2,000).
-pub const MAX_INPUT_FILES: usize = 10_000_000;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Stamp {
@@ -67,52 +66,24 @@ pub fn find<'a>(plan: &'a Plan, id: Option<&str>, stage: Option<(&str, usize)>) 
     })
 }
 
-/// `path`'s fingerprint: the number of files, their bytes, and a hash of every file's relative
-/// path, size and modification time (ns).
+/// `path`'s fingerprint (`crate::fingerprint::folder`), our stamps and temporary files left out.
 fn fingerprint(node: &str, path: &Path) -> Result<Value, BatchError> {
-    if !path.exists() {
-        return Err(BatchError::Node {
-            node: node.into(),
-            message: format!("input {} does not exist (has the node making it run?)", path.display()),
-        });
-    }
-    let mut h = fnv::FnvHasher::default();
-    let (mut files, mut bytes) = (0usize, 0u64);
-    let mut walk = walkdir::WalkDir::new(path).sort_by_file_name().into_iter();
-    while let Some(entry) = walk.next() {
-        let entry = entry.map_err(|e| BatchError::Node { node: node.into(), message: e.to_string() })?;
-        // Our stamps and temporary files are not inputs.
-        if entry.file_name().to_str().is_some_and(|n| n == STAMP_DIR || n.ends_with(".tmp")) {
-            if entry.file_type().is_dir() {
-                walk.skip_current_dir();
+    let ours = |p: &Path| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n == STAMP_DIR || n.ends_with(".tmp"));
+    crate::fingerprint::folder(path, ours).map_err(|e| BatchError::Node {
+        node: node.into(),
+        message: match e {
+            crate::fingerprint::FingerprintError::Missing(_) => {
+                format!("input {} does not exist (has the node making it run?)", path.display())
             }
-            continue;
-        }
-        if !entry.file_type().is_file() {
-            continue;
-        }
-        files += 1;
-        if files > MAX_INPUT_FILES {
-            return Err(BatchError::Node {
-                node: node.into(),
-                message: format!("input {} holds more than {MAX_INPUT_FILES} files", path.display()),
-            });
-        }
-        let meta = entry.metadata().map_err(|e| BatchError::Node { node: node.into(), message: e.to_string() })?;
-        let mtime = meta.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
-        let rel = entry.path().strip_prefix(path).unwrap_or(entry.path());
-        h.write(rel.to_string_lossy().as_bytes());
-        h.write_u64(meta.len());
-        h.write_u128(mtime.map_or(0, |d| d.as_nanos()));
-        bytes += meta.len();
-    }
-    Ok(json!({ "path": path, "files": files, "bytes": bytes, "hash": format!("{:016x}", h.finish()) }))
+            e => format!("input {e}"),
+        },
+    })
 }
 
 /// The node's key: what it runs and what it reads.
 pub fn key(node: &Node) -> Result<Value, BatchError> {
     let inputs = node.inputs.iter().map(|p| fingerprint(&node.id, p)).collect::<Result<Vec<_>, _>>()?;
-    Ok(json!({ "args": node.args, "env": node.env, "inputs": inputs }))
+    Ok(json!({ "args": node.args, "env": node.env, "inputs": inputs, "program": crate::fingerprint::program() }))
 }
 
 pub fn stamp_path(plan: &Plan, node: &Node) -> PathBuf {
