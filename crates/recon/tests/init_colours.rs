@@ -26,8 +26,7 @@ fn sweeps_on_held_out_frames_take_their_colours_from_training_views() {
     let scene_dir = dir.path().join("scene");
     let sc = synth::SynthConfig { frames: 9, cameras: 2, width: 96, height: 64, seed: 3, ..Default::default() };
     synth::synthesize(&sc, &scene_dir, &mut |_, _| {}).expect("synthetic scene");
-    let mut cfg = TrainConfig::default();
-    cfg.scale = 1.0;
+    let cfg = TrainConfig { scale: 1.0, ..TrainConfig::default() };
     let none = |_: &View| Ok(None);
     let (mut scene, mut views) = recon::session::prepare(&scene_dir, &cfg, &none).unwrap();
     paint(&mut views);
