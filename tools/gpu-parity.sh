@@ -3,8 +3,9 @@
 # the binaries are built here and carried in .device-bin/cuda/ (git-ignored), e.g.
 #   cargo test --release -p splat-cuda --no-run   (the rasterizer parity and device sort test executables)
 #   cargo test --release -p recon --test device_parity --no-run   (the device trainer's)
+#   cargo test --release -p recon --test device_draw --no-run   (the videos' device drawer's)
 #   cargo build --release -p carla-gs --no-default-features
-#   cp <test executables> .device-bin/cuda/{parity,sort,device_parity}; cp target/release/carla-gs .device-bin/cuda/
+#   cp <test executables> .device-bin/cuda/{parity,sort,device_parity,device_draw}; cp target/release/carla-gs .device-bin/cuda/
 # then, on the device: bash .device-bin/cuda/gpu-parity.sh (a copy of this script).
 # Writes parity.log, bench.json and bench.log under $OUT (or ./gpu-out).
 set -uo pipefail
@@ -24,6 +25,8 @@ echo "== device sort"
 "$bin/sort" --nocapture --test-threads=1 2>&1 | tee "$out/sort.log" || status=1
 echo "== device trainer parity"
 "$bin/device_parity" --nocapture --test-threads=1 2>&1 | tee "$out/device_parity.log" || status=1
+echo "== device drawer (videos)"
+"$bin/device_draw" --nocapture --test-threads=1 2>&1 | tee "$out/device_draw.log" || status=1
 if [ "${SKIP_BENCH:-0}" != 1 ]; then
     echo "== benchmark"
     "$bin/carla-gs" bench-splat --cases "${CASES:-100000x960x540,1000000x960x540}" --devices "${DEVICES:-cuda,cpu}" \

@@ -7,6 +7,7 @@ use crate::camera::pixel_ray;
 use crate::compose::{compose_into, Composed, Layers};
 use crate::model::SceneModel;
 use crate::pose::BoxPose;
+use rayon::prelude::*;
 use scene::Scene;
 use splat::render::{Image, RenderOptions};
 
@@ -40,8 +41,15 @@ pub fn draw<B: Backend>(
     let mut img = Image::default();
     let mut ctx = B::Context::default();
     backend.render(&composed.world, cam, &RenderOptions::default(), &mut img, &mut ctx);
+    drawn(model, cam, layers, img)
+}
+
+/// The drawn view of the Gaussians' image `img` from `cam`: the sky added behind them unless only
+/// the actors are drawn.
+pub(crate) fn drawn(model: &SceneModel, cam: &splat::Camera, layers: Layers, img: Image) -> Drawn {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let rgb = (0..w * h)
+        .into_par_iter()
         .map(|i| {
             if layers == Layers::ActorsOnly {
                 return img.rgb[i];

@@ -73,6 +73,9 @@ pub struct CaseView<'a, B: Backend> {
     pub executed: &'a Executed,
     pub adversary: Backprojection,
     actor: usize,
+    /// With a GPU behind the backend: the model kept on the device for every view
+    /// (`recon::device::DeviceDrawer`); `None` draws through `recon::view::draw`.
+    drawer: Option<std::sync::Mutex<recon::device::DeviceDrawer>>,
 }
 
 impl<'a, B: Backend> CaseView<'a, B> {
@@ -84,7 +87,14 @@ impl<'a, B: Backend> CaseView<'a, B> {
     ) -> Result<Self, RenderError> {
         let adversary = Backprojection::new(scene, executed)?;
         let actor = actor_index(model, &adversary.track_id)?;
-        Ok(CaseView { backend, model, scene, executed, adversary, actor })
+        let drawer = backend.gpu().and_then(|gpu| match recon::device::DeviceDrawer::new(gpu, model) {
+            Ok(d) => Some(std::sync::Mutex::new(d)),
+            Err(e) => {
+                tracing::info!(reason = %e, "drawing the video through the host's composition");
+                None
+            }
+        });
+        Ok(CaseView { backend, model, scene, executed, adversary, actor, drawer })
     }
 
     /// Camera `camera` at time `t`, with the corner-case motion or as logged.
@@ -92,7 +102,13 @@ impl<'a, B: Backend> CaseView<'a, B> {
         let cam = camera_at(self.scene, camera, t, scale)?;
         let pose = corner_case.then(|| self.adversary.pose_at(self.scene, t));
         let overrides = |i: usize| if i == self.actor { pose } else { None };
-        let d = recon::view::draw(self.backend, self.model, self.scene, &cam, t, Layers::All, &overrides);
+        let d = match &self.drawer {
+            Some(m) => {
+                let mut drawer = m.lock().unwrap_or_else(|p| p.into_inner());
+                drawer.draw(self.model, self.scene, &cam, t, Layers::All, &overrides)?
+            }
+            None => recon::view::draw(self.backend, self.model, self.scene, &cam, t, Layers::All, &overrides),
+        };
         Ok(Canvas::from_rgb_f64(d.width, d.height, &d.rgb))
     }
 

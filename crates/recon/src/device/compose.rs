@@ -14,6 +14,7 @@ use super::kernels::{linear, Kernels, Seg, Xf};
 use super::model::DeviceModel;
 use crate::compose::{actor_pose, yaw_rotation};
 use crate::model::SceneModel;
+use crate::pose::BoxPose;
 use crate::sh_rotate::ShRotation;
 use scene::Scene;
 use splat::sh::sh_coeffs;
@@ -66,7 +67,8 @@ impl Segments {
         Ok(Segments { rows: Vec::new(), dev: s.alloc_zeros(1)?, sh: ShCache::default() })
     }
 
-    /// Builds the runs of the scene at time `t` and copies them to the device.
+    /// Builds the runs of the scene at time `t` (every actor at its logged pose) and copies them
+    /// to the device.
     pub fn build(
         &mut self,
         s: &Arc<CudaStream>,
@@ -75,6 +77,19 @@ impl Segments {
         dm: &DeviceModel,
         t: f64,
     ) -> Result<(), CudaError> {
+        self.build_with(s, model.actors.len(), dm, true, &|ai| actor_pose(model, scene, ai, t))
+    }
+
+    /// Builds the runs of the background (when `background`) and of each of the `actors` actors
+    /// that `pose_of` places (`None`: not drawn), and copies them to the device.
+    pub fn build_with(
+        &mut self,
+        s: &Arc<CudaStream>,
+        actors: usize,
+        dm: &DeviceModel,
+        background: bool,
+        pose_of: &dyn Fn(usize) -> Option<BoxPose>,
+    ) -> Result<(), CudaError> {
         self.rows.clear();
         let push = |rows: &mut Vec<Seg>, src0: usize, dst0: usize, n: usize, xf: Option<Xf>| {
             if n > 0 {
@@ -82,10 +97,13 @@ impl Segments {
                 rows.push(Seg { src0: src0 as i32, dst0: dst0 as i32, n: n as i32, moved, xf });
             }
         };
-        push(&mut self.rows, 0, 0, dm.offsets[1], None);
-        let mut dst = dm.offsets[1];
-        for ai in 0..model.actors.len() {
-            let Some(pose) = actor_pose(model, scene, ai, t) else { continue };
+        let mut dst = 0;
+        if background {
+            push(&mut self.rows, 0, 0, dm.offsets[1], None);
+            dst = dm.offsets[1];
+        }
+        for ai in 0..actors {
+            let Some(pose) = pose_of(ai) else { continue };
             let n = dm.offsets[ai + 2] - dm.offsets[ai + 1];
             let r = yaw_rotation(pose.heading);
             let mut xf = Xf::IDENTITY;

@@ -14,11 +14,14 @@
 
 mod compose;
 mod densify;
+mod draw;
 mod kernels;
 mod ledger;
 mod loss;
 mod model;
 mod targets;
+
+pub use draw::DeviceDrawer;
 
 use crate::checkpoint::TrainState;
 use crate::config::TrainConfig;

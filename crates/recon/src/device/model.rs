@@ -119,18 +119,53 @@ impl DeviceModel {
         *self.offsets.last().unwrap_or(&0)
     }
 
-    pub fn upload(s: &Arc<CudaStream>, st: &TrainState) -> Result<DeviceModel, crate::ReconError> {
-        let degree = st.model.background.sh_degree;
-        if let Some(a) = st.model.actors.iter().find(|a| a.gaussians.sh_degree != degree) {
+    /// Where each of `model`'s sets starts (and the total at the end), once every set is checked
+    /// to have the background's SH degree.
+    fn offsets(model: &crate::model::SceneModel) -> Result<(Vec<usize>, usize), crate::ReconError> {
+        let degree = model.background.sh_degree;
+        if let Some(a) = model.actors.iter().find(|a| a.gaussians.sh_degree != degree) {
             return Err(crate::ReconError::Input(format!(
-                "actor {} has SH degree {} but the background {degree}: the device trainer needs one degree",
+                "actor {} has SH degree {} but the background {degree}: the device needs one degree",
                 a.track_id, a.gaussians.sh_degree
             )));
         }
         let mut offsets = vec![0];
-        for g in st.model.sets() {
+        for g in model.sets() {
             offsets.push(offsets.last().copied().unwrap_or(0) + g.len());
         }
+        Ok((offsets, degree))
+    }
+
+    /// `model`'s parameters alone, for drawing (`draw::DeviceDrawer`): no gradients, moments,
+    /// statistics or sky on the device.
+    pub fn upload_for_drawing(
+        s: &Arc<CudaStream>,
+        model: &crate::model::SceneModel,
+    ) -> Result<DeviceModel, crate::ReconError> {
+        let (offsets, degree) = Self::offsets(model)?;
+        let d = |e: DriverError| crate::ReconError::Device(e.to_string());
+        let kc = splat::sh::sh_coeffs(degree) * 3;
+        let one = || s.alloc_zeros::<f32>(1).map_err(d);
+        Ok(DeviceModel {
+            p: Params::upload(s, &model.sets().collect::<Vec<_>>()).map_err(d)?,
+            g: Params::zeros(s, 0, kc).map_err(d)?,
+            m: Params::zeros(s, 0, kc).map_err(d)?,
+            v: Params::zeros(s, 0, kc).map_err(d)?,
+            sky: one()?,
+            sky_g: one()?,
+            sky_m: one()?,
+            sky_v: one()?,
+            grad_sum: one()?,
+            seen: s.alloc_zeros(1).map_err(d)?,
+            max_radius: one()?,
+            offsets,
+            kc,
+            degree,
+        })
+    }
+
+    pub fn upload(s: &Arc<CudaStream>, st: &TrainState) -> Result<DeviceModel, crate::ReconError> {
+        let (offsets, degree) = Self::offsets(&st.model)?;
         let n = *offsets.last().unwrap_or(&0);
         let d = |e: DriverError| crate::ReconError::Device(e.to_string());
         let stats = |f: &dyn Fn(&crate::densify::Stats, usize) -> f64| {
