@@ -2,8 +2,10 @@
 //! stamps (`batch::node`): a folder's files, and the program that made the result.
 //!
 //! A folder's fingerprint is the number of its files, their bytes, and one hash of every file's
-//! relative path, size and modification time (ns), walked in name order; a changed, added, removed
-//! or renamed file changes it, without reading any file's content. The program's is carla-gs's
+//! relative path, size and modification time (ns), walked in name order (links followed); a
+//! changed, added, removed or renamed file changes it, without reading any file's content. An
+//! entry that cannot be read (no permission, a link back up the tree) goes into the hash by its
+//! path instead of failing the walk. The program's is carla-gs's
 //! version with its executable's size and modification time, so a rebuilt binary does not reuse
 //! what an older one made: a cached model trained by code since fixed would otherwise be reported
 //! as this version's.
@@ -19,8 +21,6 @@ pub const MAX_FILES: usize = 10_000_000;
 pub enum FingerprintError {
     #[error("{0}: does not exist")]
     Missing(String),
-    #[error("{path}: {message}")]
-    Walk { path: String, message: String },
     #[error("{path}: holds more than {max} files")]
     TooMany { path: String, max: usize },
 }
@@ -36,12 +36,25 @@ fn folder_within(path: &Path, max: usize, skip: impl Fn(&Path) -> bool) -> Resul
     if !path.exists() {
         return Err(FingerprintError::Missing(shown()));
     }
-    let walk_error = |e: &dyn std::fmt::Display| FingerprintError::Walk { path: shown(), message: e.to_string() };
     let mut h = fnv::FnvHasher::default();
     let (mut files, mut bytes) = (0usize, 0u64);
     let mut walk = walkdir::WalkDir::new(path).follow_links(true).sort_by_file_name().into_iter();
+    let unreadable = |h: &mut fnv::FnvHasher, at: &Path| {
+        h.write(b"unreadable:");
+        h.write(at.strip_prefix(path).unwrap_or(at).to_string_lossy().as_bytes());
+        h.write_u8(0);
+    };
     while let Some(entry) = walk.next() {
-        let entry = entry.map_err(|e| walk_error(&e))?;
+        // What cannot be read (a folder without permission, a link back up the tree) is named in
+        // the hash rather than failing here: the stage that reads the folder decides whether it
+        // matters, and the key changes once it can be read.
+        let entry = match entry {
+            Ok(entry) => entry,
+            Err(e) => {
+                unreadable(&mut h, e.path().unwrap_or(path));
+                continue;
+            }
+        };
         if entry.depth() > 0 && skip(entry.path()) {
             if entry.file_type().is_dir() {
                 walk.skip_current_dir();
@@ -55,7 +68,10 @@ fn folder_within(path: &Path, max: usize, skip: impl Fn(&Path) -> bool) -> Resul
         if files > max {
             return Err(FingerprintError::TooMany { path: shown(), max });
         }
-        let meta = entry.metadata().map_err(|e| walk_error(&e))?;
+        let Ok(meta) = entry.metadata() else {
+            unreadable(&mut h, entry.path());
+            continue;
+        };
         let mtime = meta.modified().ok().and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok());
         let rel = entry.path().strip_prefix(path).unwrap_or(entry.path());
         h.write(rel.to_string_lossy().as_bytes());
@@ -114,6 +130,17 @@ mod tests {
         assert_ne!(fp(d.path())["hash"], grown["hash"]);
         std::fs::write(d.path().join("camera/01.jpg"), b"").unwrap();
         assert_eq!(fp(d.path())["files"].as_u64(), Some(3));
+    }
+
+    #[test]
+    fn a_link_back_up_the_tree_is_named_not_fatal() {
+        let d = tempfile::tempdir().unwrap();
+        std::fs::write(d.path().join("a.json"), b"{}").unwrap();
+        let before = fp(d.path());
+        std::os::unix::fs::symlink(d.path(), d.path().join("loop")).unwrap();
+        let looped = fp(d.path());
+        assert_eq!(looped["files"], before["files"], "{looped}");
+        assert_ne!(looped["hash"], before["hash"]);
     }
 
     #[test]
