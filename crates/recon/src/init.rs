@@ -175,18 +175,17 @@ pub fn initialise(
                 box_pose_at(scene, t, f.timestamp_s).zip(size).map(|(p, s)| (p.world_from_box().inverse(), s))
             })
             .collect();
-        // A point's home: the first box that holds it (the point in that box's frame), above the
-        // road band at the box's floor; `None` for the background.
-        let home = |p_world: DVec3| {
-            poses.iter().enumerate().find_map(|(ti, pose)| {
+        // The actor a point belongs to, with the point in its box frame: the first box that holds
+        // it, unless the point lies in the road band at that box's floor (then, as elsewhere, the
+        // background's).
+        let on_actor = |p_world: DVec3| {
+            let (ti, b, s) = poses.iter().enumerate().find_map(|(ti, pose)| {
                 let (box_from_world, s) = pose.as_ref()?;
                 let b = box_from_world.transform_point(p_world);
-                (b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2]).then_some((
-                    ti,
-                    b,
-                    b.z >= -0.5 * s[2] + ACTOR_FLOOR_M,
-                ))
-            })
+                let inside = b.x.abs() <= 0.55 * s[0] && b.y.abs() <= 0.55 * s[1] && b.z.abs() <= 0.55 * s[2];
+                inside.then_some((ti, b, s))
+            })?;
+            (b.z >= -0.5 * s[2] + ACTOR_FLOOR_M).then_some((ti, b))
         };
         let mut add = |p_world: DVec3, on_actor: Option<(usize, DVec3)>, colour: [f64; 3]| match on_actor {
             Some((ti, b)) => actor_points[ti].push((b, colour)),
@@ -204,13 +203,13 @@ pub fn initialise(
             let pts = scene::format::read_lidar(&scene_dir.join(&l.path))?;
             for p in pts {
                 let pw = f.world_from_ego.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
-                let on_actor = home(pw).filter(|h| h.2).map(|(ti, b, _)| (ti, b));
-                let colour = match on_actor {
+                let home = on_actor(pw);
+                let colour = match home {
                     None => colour_of(|_| Some(pw), &lend),
                     Some((ti, b)) => colour_of(|k| world_from_box[ti][k].map(|m| m.transform_point(b)), &lend),
                 };
                 if let Some(c) = colour {
-                    add(pw, on_actor, c);
+                    add(pw, home, c);
                 }
             }
         } else {
@@ -229,8 +228,7 @@ pub fn initialise(
                         let m = &v.cam.camera_from_world;
                         let pw: [f64; 3] = std::array::from_fn(|c| (0..3).map(|r| m[r][c] * (pc[r] - m[r][3])).sum());
                         let pw = DVec3::from(pw);
-                        let on_actor = home(pw).filter(|h| h.2).map(|(ti, b, _)| (ti, b));
-                        add(pw, on_actor, v.targets.rgb[y * v.width() + x].map(f64::from));
+                        add(pw, on_actor(pw), v.targets.rgb[y * v.width() + x].map(f64::from));
                     }
                 }
             }
