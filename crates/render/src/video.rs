@@ -1,7 +1,9 @@
 //! Rendering a corner case as video: for every frame time of the clip, each tile of the layout is
 //! drawn (camera views through the `recon` backend with the adversary moved by
 //! `backproject`, or as logged for the original; the bird's-eye panel by `bev`), pasted side by
-//! side and handed to the encoder. Every other actor and the ego follow the log.
+//! side and handed to the encoder. Every other actor and the ego follow the log. With a GPU behind
+//! the backend the views come from the model kept on the device for the whole clip
+//! (`recon::device::DeviceDrawer`), not composed and uploaded again for every view.
 
 use crate::backproject::Backprojection;
 use crate::bev::{draw_bev, BevStyle};
