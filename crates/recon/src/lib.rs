@@ -35,6 +35,7 @@ pub mod model;
 pub mod model_io;
 pub mod optim;
 pub mod out_dir;
+pub mod painter;
 pub mod pose;
 pub mod priors;
 pub mod resume;

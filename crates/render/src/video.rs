@@ -3,7 +3,7 @@
 //! `backproject`, or as logged for the original; the bird's-eye panel by `bev`), pasted side by
 //! side and handed to the encoder. Every other actor and the ego follow the log. With a GPU behind
 //! the backend the views come from the model kept on the device for the whole clip
-//! (`recon::device::DeviceDrawer`), not composed and uploaded again for every view.
+//! (`recon::painter`), not composed and uploaded again for every view.
 
 use crate::backproject::Backprojection;
 use crate::bev::{draw_bev, BevStyle};
@@ -75,9 +75,8 @@ pub struct CaseView<'a, B: Backend> {
     pub executed: &'a Executed,
     pub adversary: Backprojection,
     actor: usize,
-    /// With a GPU behind the backend: the model kept on the device for every view
-    /// (`recon::device::DeviceDrawer`); `None` draws through `recon::view::draw`.
-    drawer: Option<std::sync::Mutex<recon::device::DeviceDrawer>>,
+    /// Draws the views: from the model kept on the device where the backend has a GPU.
+    painter: recon::painter::Painter<'a, B>,
 }
 
 impl<'a, B: Backend> CaseView<'a, B> {
@@ -89,14 +88,8 @@ impl<'a, B: Backend> CaseView<'a, B> {
     ) -> Result<Self, RenderError> {
         let adversary = Backprojection::new(scene, executed)?;
         let actor = actor_index(model, &adversary.track_id)?;
-        let drawer = backend.gpu().and_then(|gpu| match recon::device::DeviceDrawer::new(gpu, model) {
-            Ok(d) => Some(std::sync::Mutex::new(d)),
-            Err(e) => {
-                tracing::info!(reason = %e, "drawing the video through the host's composition");
-                None
-            }
-        });
-        Ok(CaseView { backend, model, scene, executed, adversary, actor, drawer })
+        let painter = recon::painter::Painter::new(backend, model, scene);
+        Ok(CaseView { backend, model, scene, executed, adversary, actor, painter })
     }
 
     /// Camera `camera` at time `t`, with the corner-case motion or as logged.
@@ -104,13 +97,7 @@ impl<'a, B: Backend> CaseView<'a, B> {
         let cam = camera_at(self.scene, camera, t, scale)?;
         let pose = corner_case.then(|| self.adversary.pose_at(self.scene, t));
         let overrides = |i: usize| if i == self.actor { pose } else { None };
-        let d = match &self.drawer {
-            Some(m) => {
-                let mut drawer = m.lock().unwrap_or_else(|p| p.into_inner());
-                drawer.draw(self.model, self.scene, &cam, t, Layers::All, &overrides)?
-            }
-            None => recon::view::draw(self.backend, self.model, self.scene, &cam, t, Layers::All, &overrides),
-        };
+        let d = self.painter.draw(&cam, t, Layers::All, &overrides);
         Ok(Canvas::from_rgb_f64(d.width, d.height, &d.rgb))
     }
 
