@@ -1,7 +1,8 @@
 //! EWA projection of 3D Gaussians into a camera (all in f64; the model stores f32).
 //!
 //! For a Gaussian with mean `m`, rotation `R_g`, scales `s` (exp of the log-scales):
-//! `p = camera_from_world * m` (OpenCV axes); culled unless `near < p.z < far`.
+//! `p = camera_from_world * m` (OpenCV axes); culled unless `near < p.z < far` and its screen box
+//! (below) reaches the image ([`on_screen`]).
 //! `Sigma3 = R_g diag(s^2) R_g^T`, `W` = the camera's rotation,
 //! `J = [[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]]` with `x/z` and `y/z` clamped to 1.3x the
 //! field of view on each side of the principal point (as gsplat does, for stability off-screen), `Sigma2 = J W Sigma3 W^T J^T`.
@@ -77,6 +78,44 @@ pub struct Frame {
     pub flipped: bool,
 }
 
+/// Whether the alpha >= 1/255 box around `mean` (half-widths `extent`) reaches the image: a
+/// Gaussian whose box misses it is culled, as 3DGS and gsplat do (no radius, not visible). It
+/// could reach no pixel, and counting it as drawn would dilute the density statistics (their
+/// mean gradient per view seen) by every view that merely had it in front of the camera. A
+/// superset of the pixels `tiles::alpha_at` can accept (pixel centres lie in `[0.5, w - 0.5]`).
+pub fn on_screen(mean: [f64; 2], extent: [f64; 2], cam: &Camera) -> bool {
+    mean[0] + extent[0] >= 0.0
+        && mean[0] - extent[0] < cam.width as f64
+        && mean[1] + extent[1] >= 0.0
+        && mean[1] - extent[1] < cam.height as f64
+}
+
+/// A cheap early form of [`on_screen`]'s cull, before the covariance: true only where the box
+/// surely misses the image. The box's half-width along x is `sqrt(level (Sigma2_xx + 0.3))`, with
+/// `level <= 2 ln 255` (opacity at most 1) and `Sigma2_xx = T_x Sigma3 T_x^T <= |T_x|^2 s_max^2`
+/// (`T_x` the first row of `J W`, at the clamped `x / z` as in the projection; `Sigma3`'s largest
+/// eigenvalue is `s_max^2`); likewise along y. Padded (relative 1e-6 and 1e-6 px) so rounding never
+/// culls what the exact test keeps; NaN culls nothing here (the exact path decides).
+pub fn surely_off_screen(p: [f64; 3], s_max: f64, cam: &Camera) -> bool {
+    const LEVEL_MAX: f64 = 11.082_6; // 2 ln 255 = 11.08253, rounded up
+    let z = p[2];
+    let (ux, uy) = (p[0] / z, p[1] / z);
+    let (w_px, h_px) = (cam.width as f64, cam.height as f64);
+    let cx_ = ux.clamp(-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx);
+    let cy_ = uy.clamp(-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy);
+    let w = &cam.camera_from_world;
+    // |T_row|^2 for J_row = (f / z) (e_axis - u e_z): (f / z)^2 |W_axis - u W_z|^2.
+    let row = |f: f64, axis: usize, u: f64| {
+        let v: [f64; 3] = std::array::from_fn(|b| w[axis][b] - u * w[2][b]);
+        (f / z) * (f / z) * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    };
+    let s2 = s_max * s_max;
+    let bound = |t2: f64| (LEVEL_MAX * (t2 * s2 + EPS2D)).sqrt() * (1.0 + 1e-6) + 1e-6;
+    let (bx, by) = (bound(row(cam.fx, 0, cx_)), bound(row(cam.fy, 1, cy_)));
+    let (mx, my) = (cam.fx * ux + cam.cx, cam.fy * uy + cam.cy);
+    mx + bx < 0.0 || mx - bx >= w_px || my + by < 0.0 || my - by >= h_px
+}
+
 /// Projects Gaussian `i`; `None` if culled or degenerate (never NaN out).
 pub fn project(g: &Gaussians, i: usize, cam: &Camera, antialiased: bool) -> Option<Projected> {
     project_full(g, i, cam, antialiased, false).map(|(p, _)| p)
@@ -97,7 +136,7 @@ pub fn project_full(
     }
     let r = rotation(g.rotations[i]);
     let s = g.log_scales[i].map(f64::exp);
-    if s.iter().any(|v| !v.is_finite()) {
+    if s.iter().any(|v| !v.is_finite()) || (!smooth && surely_off_screen(p, s[0].max(s[1]).max(s[2]), cam)) {
         return None;
     }
     // Sigma3 = R diag(s^2) R^T
@@ -143,6 +182,9 @@ pub fn project_full(
     let level = 2.0 * (255.0 * opacity).ln().max(0.0);
     let extent = [(level * cov[0][0]).sqrt(), (level * cov[1][1]).sqrt()];
     let mean = [cam.fx * p[0] / z + cam.cx, cam.fy * p[1] / z + cam.cy];
+    if !smooth && !on_screen(mean, extent, cam) {
+        return None;
+    }
     // Colour from SH at the view direction (world frame, camera centre to mean).
     let c = cam.center();
     let d = [m[0] - c[0], m[1] - c[1], m[2] - c[2]];

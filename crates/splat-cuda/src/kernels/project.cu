@@ -169,6 +169,10 @@ __device__ bool project_one(int i, const float* means, const float* log_scales, 
     out.extent[1] = sqrtf(level * cov[3]);
     out.mean[0] = cam.fx * f.p[0] / z + cam.cx;
     out.mean[1] = cam.fy * f.p[1] / z + cam.cy;
+    // Culled where the alpha >= 1/255 box misses the image (splat::project::on_screen; NaN fails).
+    if (!o.smooth && !(out.mean[0] + out.extent[0] >= 0.0f && out.mean[0] - out.extent[0] < (float)cam.width &&
+                       out.mean[1] + out.extent[1] >= 0.0f && out.mean[1] - out.extent[1] < (float)cam.height))
+        return false;
     out.opacity = opacity;
     out.power_min = logf(ALPHA_MIN / opacity);
     out.depth = z;

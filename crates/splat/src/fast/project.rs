@@ -9,11 +9,11 @@
 //! vanish in f32 rounding); its results are stored in f32 for the tile kernels and the f32 chain
 //! rule. Culling is the reference's, decided in f64:
 //! outside `near < z < far`, non-finite values, a non-positive 2D determinant, opacity below
-//! 1/255.
+//! 1/255, a screen box that misses the image (`project::on_screen`).
 
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
-use crate::project::{rotation, EPS2D};
+use crate::project::{on_screen, rotation, surely_off_screen, EPS2D};
 use crate::sh::basis;
 
 pub const ALPHA_MIN: f32 = 1.0 / 255.0;
@@ -103,14 +103,14 @@ pub fn project32(g: &Gaussians, i: usize, cam: &Camera, cc: &CamConst, antialias
     if !(p64[2] > cam.near && p64[2] < cam.far) || p64.iter().any(|v| !v.is_finite()) {
         return None;
     }
+    let s64 = g.log_scales[i].map(f64::exp);
+    if s64.iter().any(|v| !v.is_finite()) || surely_off_screen(p64, s64[0].max(s64[1]).max(s64[2]), cam) {
+        return None;
+    }
     let p = p64.map(|v| v as f32);
     // The covariance chain in f64: a very flat Gaussian's small eigenvalue (scale ratio below
     // about 3e-4) and the antialiasing determinant would be lost to f32 rounding.
     let r64 = rotation(g.rotations[i]);
-    let s64 = g.log_scales[i].map(f64::exp);
-    if s64.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
     let mut sig3 = [[0.0f64; 3]; 3];
     for a in 0..3 {
         for b in a..3 {
@@ -151,8 +151,12 @@ pub fn project32(g: &Gaussians, i: usize, cam: &Camera, cc: &CamConst, antialias
     let s = s64.map(|v| v as f32);
     let conic = [(a11 / det) as f32, (-c01 / det) as f32, (a00 / det) as f32];
     let level = 2.0 * (255.0 * opacity64).ln().max(0.0);
-    let extent = [(level * a00).sqrt() as f32, (level * a11).sqrt() as f32];
-    let mean = [(cam.fx * p64[0] / p64[2] + cam.cx) as f32, (cam.fy * p64[1] / p64[2] + cam.cy) as f32];
+    let extent64 = [(level * a00).sqrt(), (level * a11).sqrt()];
+    let mean64 = [cam.fx * p64[0] / p64[2] + cam.cx, cam.fy * p64[1] / p64[2] + cam.cy];
+    if !on_screen(mean64, extent64, cam) {
+        return None;
+    }
+    let (extent, mean) = (extent64.map(|v| v as f32), mean64.map(|v| v as f32));
     let c = cc.center;
     let d = [m[0] - c[0], m[1] - c[1], m[2] - c[2]];
     let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
