@@ -25,8 +25,14 @@ fn gaussian_at(g: &mut Gaussians, cam: &Camera, u: f64, v: f64, log_scale: f64) 
 
 /// The scene and, per Gaussian, whether it must be drawn.
 fn scene(cam: &Camera) -> (Gaussians, Vec<bool>) {
-    let mut g =
-        Gaussians { means: vec![], log_scales: vec![], rotations: vec![], opacity_logits: vec![], sh_degree: 0, sh: vec![] };
+    let mut g = Gaussians {
+        means: vec![],
+        log_scales: vec![],
+        rotations: vec![],
+        opacity_logits: vec![],
+        sh_degree: 0,
+        sh: vec![],
+    };
     let (w, h) = (W as f64, H as f64);
     let cases = [
         (w / 2.0, h / 2.0, -3.0, true),   // inside
@@ -72,7 +78,8 @@ fn off_screen_gaussians_are_culled_by_both_paths() {
     let mut grads = Gradients::default();
     fast::backward_into(&g, &cam, &feats, &opts, &ctx32, &up, &mut grads);
     for (i, drawn) in want.iter().enumerate() {
-        let moved = grads.means[i].iter().chain(&grads.log_scales[i]).any(|v| *v != 0.0) || grads.opacity_logits[i] != 0.0;
+        let moved =
+            grads.means[i].iter().chain(&grads.log_scales[i]).any(|v| *v != 0.0) || grads.opacity_logits[i] != 0.0;
         assert_eq!(moved, *drawn, "Gaussian {i}: gradient {moved}, drawn {drawn}");
     }
 
@@ -112,7 +119,8 @@ fn the_early_cull_is_a_safe_subset_of_the_exact_one() {
         ..Camera::at_origin(120, 80, 90.0)
     };
     let mut tilted = Camera::at_origin(96, 54, 40.0);
-    tilted.camera_from_world = [[0.8, 0.0, 0.6, 0.3], [0.0, 1.0, 0.0, -0.2], [-0.6, 0.0, 0.8, 1.0], [0.0, 0.0, 0.0, 1.0]];
+    tilted.camera_from_world =
+        [[0.8, 0.0, 0.6, 0.3], [0.0, 1.0, 0.0, -0.2], [-0.6, 0.0, 0.8, 1.0], [0.0, 0.0, 0.0, 1.0]];
     let (mut early, mut off) = (0usize, 0usize);
     for cam in [Camera::at_origin(W, H, 60.0), tilted, skewed] {
         let n = 20_000;
