@@ -40,7 +40,7 @@ impl SceneModel {
 
 /// An empty set of the given SH degree.
 pub fn empty(sh_degree: usize) -> Gaussians {
-    Gaussians { means: vec![], log_scales: vec![], rotations: vec![], opacity_logits: vec![], sh_degree, sh: vec![] }
+    Gaussians::empty(sh_degree)
 }
 
 /// Same shape as `g`, every value zero (optimiser moments, gradient accumulators).

@@ -372,14 +372,7 @@ fn degenerate_inputs_match_the_cpu_reference() {
         );
         assert!(o.forward <= 1e-4 && o.grad <= 1e-3, "aa {aa}: {} / {} ({})", o.forward, o.grad, o.worst);
     }
-    let empty = Gaussians {
-        means: vec![],
-        log_scales: vec![],
-        rotations: vec![],
-        opacity_logits: vec![],
-        sh_degree: 0,
-        sh: vec![],
-    };
+    let empty = Gaussians::empty(0);
     let opts = RenderOptions { background: [1.0, 0.0, 0.0], ..Default::default() };
     let o = compare(&gpu, &empty, &cam, 0, &opts, true, &mut r);
     println!("empty scene: forward max abs {:.3e}", o.forward);

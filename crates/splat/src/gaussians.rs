@@ -28,6 +28,18 @@ pub enum ModelError {
 }
 
 impl Gaussians {
+    /// No Gaussians, at SH degree `sh_degree`.
+    pub fn empty(sh_degree: usize) -> Gaussians {
+        Gaussians {
+            means: vec![],
+            log_scales: vec![],
+            rotations: vec![],
+            opacity_logits: vec![],
+            sh_degree,
+            sh: vec![],
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.means.len()
     }

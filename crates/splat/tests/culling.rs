@@ -25,14 +25,7 @@ fn gaussian_at(g: &mut Gaussians, cam: &Camera, u: f64, v: f64, log_scale: f64) 
 
 /// The scene and, per Gaussian, whether it must be drawn.
 fn scene(cam: &Camera) -> (Gaussians, Vec<bool>) {
-    let mut g = Gaussians {
-        means: vec![],
-        log_scales: vec![],
-        rotations: vec![],
-        opacity_logits: vec![],
-        sh_degree: 0,
-        sh: vec![],
-    };
+    let mut g = Gaussians::empty(0);
     let (w, h) = (W as f64, H as f64);
     let cases = [
         (w / 2.0, h / 2.0, -3.0, true),   // inside
@@ -124,14 +117,8 @@ fn the_early_cull_is_a_safe_subset_of_the_exact_one() {
     let (mut early, mut off) = (0usize, 0usize);
     for cam in [Camera::at_origin(W, H, 60.0), tilted, skewed] {
         let n = 20_000;
-        let mut g = Gaussians {
-            means: vec![],
-            log_scales: vec![],
-            rotations: vec![],
-            opacity_logits: vec![],
-            sh_degree: 0,
-            sh: vec![0.0; n * 3],
-        };
+        let mut g = Gaussians::empty(0);
+        g.sh = vec![0.0; n * 3];
         for _ in 0..n {
             let z = r.range(0.05, 60.0);
             g.means.push([r.range(-3.0, 3.0) * z, r.range(-3.0, 3.0) * z, z]);

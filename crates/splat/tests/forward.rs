@@ -103,14 +103,7 @@ fn degenerate_inputs_never_panic_or_write_nan() {
         assert!(img.alpha[i].is_finite() && img.depth[i].is_finite(), "pixel {i}");
         assert!(img.rgb[i].iter().chain(&img.normal[i]).all(|v| v.is_finite()), "pixel {i}");
     }
-    let empty = Gaussians {
-        means: vec![],
-        log_scales: vec![],
-        rotations: vec![],
-        opacity_logits: vec![],
-        sh_degree: 0,
-        sh: vec![],
-    };
+    let empty = Gaussians::empty(0);
     let bg = render(
         &empty,
         &cam,
