@@ -69,8 +69,6 @@ pub fn camera_at(scene: &Scene, name: &str, t: f64, scale: f64) -> Result<splat:
 
 /// One corner case ready to draw.
 pub struct CaseView<'a, B: Backend> {
-    pub backend: &'a B,
-    pub model: &'a SceneModel,
     pub scene: &'a Scene,
     pub executed: &'a Executed,
     pub adversary: Backprojection,
@@ -89,7 +87,7 @@ impl<'a, B: Backend> CaseView<'a, B> {
         let adversary = Backprojection::new(scene, executed)?;
         let actor = actor_index(model, &adversary.track_id)?;
         let painter = recon::painter::Painter::new(backend, model, scene);
-        Ok(CaseView { backend, model, scene, executed, adversary, actor, painter })
+        Ok(CaseView { scene, executed, adversary, actor, painter })
     }
 
     /// Camera `camera` at time `t`, with the corner-case motion or as logged.
