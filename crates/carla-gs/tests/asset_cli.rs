@@ -16,7 +16,7 @@ fn carla_gs(args: &[&str]) -> std::process::Output {
 /// Opaque Gaussians on a grid filling a box of `size`, with a bump at the front (+x) so the
 /// shape is not symmetric.
 fn box_gaussians(size: [f64; 3]) -> splat::Gaussians {
-    let mut g = recon::model::empty(0);
+    let mut g = splat::Gaussians::empty(0);
     let n = 8;
     for i in 0..n {
         for j in 0..n {

@@ -126,7 +126,7 @@ fn simulate_budget_and_metrics_of_edited_files() {
 /// A model of S40 whose every part is one small blob (enough to render), trained on `scene`.
 fn model_dir(dir: &Path, scene_dir: &Path) -> PathBuf {
     let scene = scene::load_scene(scene_dir).unwrap();
-    let mut blob = recon::model::empty(0);
+    let mut blob = splat::Gaussians::empty(0);
     blob.means.push([10.0, 0.0, 1.0]);
     blob.log_scales.push([0.0; 3]);
     blob.rotations.push([1.0, 0.0, 0.0, 0.0]);

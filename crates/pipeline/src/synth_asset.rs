@@ -129,7 +129,7 @@ pub fn vehicle_asset(v: &Vehicle, voxel_m: f64) -> Result<Gaussians, PipelineErr
             }
         }
     }
-    let mut g = recon::model::empty(0);
+    let mut g = splat::Gaussians::empty(0);
     let (ls_t, ls_n) = ((0.5 * voxel_m).ln(), (0.08 * voxel_m).ln());
     for acc in bins.values() {
         let normal = if acc.normal.length() > 1e-9 { acc.normal.normalize() } else { DVec3::Z };

@@ -23,7 +23,7 @@ use std::path::Path;
 /// A `n x n x n` grid of opaque Gaussians filling a box of `size` (box frame, centred).
 fn box_of_gaussians(size: [f64; 3], colour: [f64; 3]) -> Gaussians {
     let n = 10;
-    let mut g = recon::model::empty(0);
+    let mut g = splat::Gaussians::empty(0);
     for i in 0..n {
         for j in 0..n {
             for k in 0..n {
@@ -56,7 +56,7 @@ fn box_model(scene: &scene::Scene) -> SceneModel {
             Actor { track_id: t.id.clone(), size_lwh: size, gaussians: box_of_gaussians(size, [0.8, 0.2, 0.2]) }
         })
         .collect();
-    SceneModel { background: recon::model::empty(0), actors, sky: Sky::new(4, [0.5, 0.6, 0.8]) }
+    SceneModel { background: splat::Gaussians::empty(0), actors, sky: Sky::new(4, [0.5, 0.6, 0.8]) }
 }
 
 #[test]

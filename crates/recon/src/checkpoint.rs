@@ -11,7 +11,7 @@
 
 use crate::densify::Stats;
 use crate::error::ReconError;
-use crate::model::{empty, Actor, SceneModel};
+use crate::model::{Actor, SceneModel};
 use crate::optim::AdamState;
 use crate::sky::Sky;
 use serde::{Deserialize, Serialize};
@@ -297,7 +297,7 @@ pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconE
         return Err(bad("payload longer than the header says"));
     }
     let mut it = sets.into_iter();
-    let background = it.next().unwrap_or_else(|| empty(0));
+    let background = it.next().unwrap_or_else(|| Gaussians::empty(0));
     let actors = header.sets[1..]
         .iter()
         .zip(it)

@@ -39,7 +39,7 @@ pub struct Composed {
 
 impl Default for Composed {
     fn default() -> Self {
-        Composed { world: crate::model::empty(0), parts: vec![] }
+        Composed { world: Gaussians::empty(0), parts: vec![] }
     }
 }
 
@@ -275,7 +275,7 @@ fn zero_rows(grads: &mut [Gaussians], rows: &[(usize, usize)], degree: usize) {
 
 /// Zeroes per-model gradient buffers, resizing them to the model's current shape.
 fn reset_gradients(model: &SceneModel, grads: &mut Vec<Gaussians>) {
-    grads.resize_with(model.actors.len() + 1, || crate::model::empty(0));
+    grads.resize_with(model.actors.len() + 1, || Gaussians::empty(0));
     for (g, m) in grads.iter_mut().zip(model.sets()) {
         if g.len() != m.len() || g.sh_degree != m.sh_degree {
             *g = crate::model::zeros_like(m);

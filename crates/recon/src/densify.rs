@@ -12,7 +12,7 @@
 
 use crate::actor_space::ActorSpace;
 use crate::densify_rule::{finish_codes, row_code, split_child, CLONE_KEPT, KEEP, SPLIT, SPLIT0_KEPT, SPLIT1_KEPT};
-use crate::model::{empty, push_row, push_zeros};
+use crate::model::{push_row, push_zeros};
 use crate::optim::AdamState;
 use splat::Gaussians;
 
@@ -83,7 +83,8 @@ fn plan(g: &Gaussians, stats: &Stats, rule: &Rule) -> Vec<u8> {
 /// parent's order (a clone, or the two split halves); moments follow their rows and children
 /// start at zero.
 fn apply(g: &mut Gaussians, m: &mut Gaussians, v: &mut Gaussians, codes: &[u8], rule: &Rule) {
-    let (mut og, mut om, mut ov) = (empty(g.sh_degree), empty(m.sh_degree), empty(v.sh_degree));
+    let (mut og, mut om, mut ov) =
+        (Gaussians::empty(g.sh_degree), Gaussians::empty(m.sh_degree), Gaussians::empty(v.sh_degree));
     for (i, code) in codes.iter().enumerate() {
         if code & KEEP != 0 {
             push_row(&mut og, g, i);
@@ -154,7 +155,7 @@ mod tests {
 
     #[test]
     fn clones_small_splits_large_prunes_transparent() {
-        let mut g = crate::model::empty(1);
+        let mut g = Gaussians::empty(1);
         let mk = |g: &mut Gaussians, ls: f64, op: f64| {
             g.means.push([0.0; 3]);
             g.log_scales.push([ls; 3]);

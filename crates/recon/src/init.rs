@@ -11,7 +11,7 @@
 use crate::config::InitConfig;
 use crate::data::View;
 use crate::error::ReconError;
-use crate::model::{empty, Actor, SceneModel};
+use crate::model::{Actor, SceneModel};
 use crate::pose::box_pose_at;
 use crate::sky::Sky;
 use crate::surface::{surface_start, SurfaceStart};
@@ -88,7 +88,7 @@ fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View]) -> Opti
 /// Gaussians at `points` with colours and 3-NN scales: isotropic with identity rotations, or, where
 /// `cfg.surface_neighbours > 0` and the neighbourhood is planar, thin discs in the local surface.
 pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, cfg: &InitConfig) -> Gaussians {
-    let mut g = empty(degree);
+    let mut g = Gaussians::empty(degree);
     let mut tree: KdTree<f64, 3> = KdTree::new();
     for (i, (p, _)) in points.iter().enumerate() {
         tree.add(&p.to_array(), i as u64);

@@ -38,11 +38,6 @@ impl SceneModel {
     }
 }
 
-/// An empty set of the given SH degree.
-pub fn empty(sh_degree: usize) -> Gaussians {
-    Gaussians::empty(sh_degree)
-}
-
 /// Same shape as `g`, every value zero (optimiser moments, gradient accumulators).
 pub fn zeros_like(g: &Gaussians) -> Gaussians {
     Gaussians {

@@ -110,12 +110,12 @@ pub(crate) fn density_control(
 mod tests {
     use super::*;
     use crate::densify::Stats;
-    use crate::model::{empty, Actor, SceneModel};
+    use crate::model::{Actor, SceneModel};
     use crate::sky::Sky;
 
     fn state() -> TrainState {
         let set = |o: f64| {
-            let mut g = empty(0);
+            let mut g = Gaussians::empty(0);
             g.means.push([0.0; 3]);
             g.log_scales.push([-2.0; 3]);
             g.rotations.push([1.0, 0.0, 0.0, 0.0]);
