@@ -134,11 +134,11 @@ pub fn project_full(
     if !(p[2] > cam.near && p[2] < cam.far) || p.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let r = rotation(g.rotations[i]);
     let s = g.log_scales[i].map(f64::exp);
     if s.iter().any(|v| !v.is_finite()) || (!smooth && surely_off_screen(p, s[0].max(s[1]).max(s[2]), cam)) {
         return None;
     }
+    let r = rotation(g.rotations[i]);
     // Sigma3 = R diag(s^2) R^T
     let mut sig3 = [[0.0; 3]; 3];
     for a in 0..3 {
