@@ -242,11 +242,8 @@ pub fn run_demo_on<B: Backend + Clone>(
     let recon: recon::eval::EvalReport = scene::format::read_json(&eval_dir.join("eval.json"))?;
 
     let scene = scene::load_scene(&scene_dir)?;
-    let mut render_settings = cfg.render.clone();
-    if cfg.input.is_some() {
-        let front = crate::real_log::front_camera(&scene).unwrap_or_else(|| "FRONT".into());
-        render_settings.layouts = vec![format!("compare:{front}"), "front3".into()];
-    }
+    // `compare:FRONT,front3` show the scene's own front cameras (`render::layout`).
+    let render_settings = &cfg.render;
     let (mut model, record) = recon::model_io::load_model(&model_dir)?;
     // The replacement showcase compares against the model as trained.
     let trained = if cfg.replace.is_empty() { None } else { Some(model.clone()) };
@@ -293,7 +290,7 @@ pub fn run_demo_on<B: Backend + Clone>(
             key["replace"] = json!(cfg.replace);
         }
         stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
-            let inputs = RunInputs { scene: &scene, model: &model, backend, render: &render_settings, out: &case_dir };
+            let inputs = RunInputs { scene: &scene, model: &model, backend, render: render_settings, out: &case_dir };
             let pb = progress.bar();
             run(&inputs, &req, &T0Choice::Search(T0Spec::Every(0.5)), None, &pb)?;
             pb.finish_and_clear();

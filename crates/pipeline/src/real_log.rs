@@ -4,7 +4,7 @@
 //! on the CPU at a quarter of the cameras' size (PandaSet's 960x540 -> 240x135) with the demo's 1500
 //! iterations; on the GPU at the full size with `configs/real-street-gpu.toml` (embedded here, one
 //! source of truth with the file users pass to `train --config`). Videos show the scene's own front
-//! camera (`compare:<front>` and `front3`), at the training scale.
+//! camera (`compare:FRONT` and `front3` resolve to it, `render::layout`), at the training scale.
 
 use crate::demo::DemoConfig;
 use crate::PipelineError;
@@ -27,15 +27,6 @@ pub fn config(input: &Path, gpu: bool) -> Result<DemoConfig, PipelineError> {
     };
     cfg.render.scale = cfg.train.scale;
     Ok(cfg)
-}
-
-/// The camera `compare:` shows: the scene's front camera by its usual names, else its first.
-pub fn front_camera(scene: &scene::Scene) -> Option<String> {
-    ["FRONT", "front_camera", "LEFT", "CAM0"]
-        .iter()
-        .find(|n| scene.camera(n).is_some())
-        .map(|n| n.to_string())
-        .or_else(|| scene.cameras.first().map(|c| c.name.clone()))
 }
 
 /// Builds `<out>/scene` from the input: a scene directory is copied (its `priors/` left out), any

@@ -74,6 +74,12 @@ impl RenderSettings {
     pub fn parsed_layouts(&self) -> Result<Vec<Layout>, PipelineError> {
         self.layouts.iter().map(|l| l.parse().map_err(|e| PipelineError::stage("render settings", e))).collect()
     }
+
+    /// The layouts with their cameras as `scene` names them (`Layout::resolve`: `FRONT` is the
+    /// scene's front camera), or the first camera it lacks.
+    pub fn resolved_layouts(&self, scene: &Scene) -> Result<Vec<Layout>, PipelineError> {
+        self.parsed_layouts()?.iter().map(|l| Ok(l.resolve(scene)?)).collect()
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -173,9 +179,10 @@ pub fn run_with<B: Backend>(
     simulate: Box<cases::runner::SimulateFn>,
 ) -> Result<RunSummary, PipelineError> {
     let out = inputs.out;
+    // A layout the scene cannot show is refused before anything is planned or removed.
+    let layouts = inputs.render.resolved_layouts(inputs.scene)?;
     std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
     clear_outputs(out)?;
-    let layouts = inputs.render.parsed_layouts()?;
     let mut timings = Vec::new();
     let clock = Instant::now();
     let selection = select_case_with(inputs.scene, req, t0, llm, simulate);

@@ -13,7 +13,8 @@ use std::path::PathBuf;
 /// Video settings shared by `run`, `video` and `demo`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct VideoArgs {
-    /// Comma-separated layouts: single:<CAMERA>, front3, compare:<CAMERA>.
+    /// Comma-separated layouts: single:<CAMERA>, front3, compare:<CAMERA>. A camera FRONT the
+    /// scene does not have by that name is its front camera (PandaSet front_camera, KITTI LEFT).
     #[arg(long, default_value = "compare:FRONT,front3")]
     pub layouts: String,
     /// Video frame rate (poses are interpolated between the log's frames).
@@ -232,7 +233,7 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
     let (model, _) = recon::model_io::load_model(&a.model)?;
     let executed = scene::executed::load_executed(&a.executed)?;
     let settings = a.video.settings();
-    let layouts = settings.parsed_layouts()?;
+    let layouts = settings.resolved_layouts(&scene)?;
     let [layout] = layouts.as_slice() else {
         anyhow::bail!("--layouts: `video` writes one layout, got {}", layouts.len())
     };
