@@ -69,3 +69,34 @@ fn errors_name_the_problem() {
     let missing = dir.path().join("none.ply");
     assert!(read_ply(&missing).unwrap_err().to_string().contains("none.ply"));
 }
+
+#[test]
+fn bad_vertices_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("v.ply");
+    let head = |opacity: &str, x: &str| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 2\n{x}\nproperty float y\nproperty float z\nproperty uchar red\n\
+property float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\nproperty {opacity} opacity\n\
+property float scale_0\nproperty float scale_1\nproperty float scale_2\n\
+property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float rot_3\nend_header\n"
+        )
+    };
+    let x = "property float x";
+    // Extra properties of other types (a colour) are ignored.
+    let good = "1 2 3 7 0.1 0.2 0.3 0 -1 -2 -3 1 0 0 0\n1 2 3 9 0.1 0.2 0.3 0 -1 -2 -3 1 0 0 0\n";
+    std::fs::write(&p, head("float", x) + good).unwrap();
+    assert_eq!(read_ply(&p).unwrap().len(), 2);
+    // A value that is not finite (1e39 is infinite in f32): the vertex and the property.
+    std::fs::write(
+        &p,
+        head("float", x) + "1 2 3 7 0.1 0.2 0.3 0 -1 -2 -3 1 0 0 0\n1 2 3 9 0.1 0.2 0.3 0 -1 1e39 -3 1 0 0 0\n",
+    )
+    .unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("vertex 1") && e.contains("`scale_1`") && e.contains("not finite"), "{e}");
+    // One of ours as an integer: refused, naming it.
+    std::fs::write(&p, head("int", x) + good).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("v.ply") && e.contains("opacity"), "{e}");
+}
