@@ -99,24 +99,31 @@ pub fn compose_into(
     for (ai, actor) in model.actors.iter().enumerate() {
         let pose = poses(ai).unwrap_or_else(|| actor_pose(model, scene, ai, t));
         let Some(pose) = pose else { continue };
-        let g = &actor.gaussians;
-        let r = yaw_rotation(pose.heading);
-        let rot = ShRotation::new(g.sh_degree, r);
-        let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
         let start = w.len();
-        let mut buf = vec![0.0; k];
-        for i in 0..g.len() {
-            let m = g.means[i];
-            w.means.push(std::array::from_fn(|a| (0..3).map(|b| r[a][b] * m[b]).sum::<f64>() + pose.center[a]));
-            w.log_scales.push(g.log_scales[i]);
-            let [qw, qx, qy, qz] = g.rotations[i];
-            w.rotations.push([c * qw - s * qz, c * qx - s * qy, c * qy + s * qx, c * qz + s * qw]);
-            w.opacity_logits.push(g.opacity_logits[i]);
-            rot.to_world(g.sh_of(i), &mut buf, active_degree);
-            w.sh.extend_from_slice(&buf);
-        }
-        out.parts.push(Part { actor: Some(ai), start, len: g.len(), pose: Some((pose, rot)) });
+        let rot = push_actor(&actor.gaussians, &pose, active_degree, w);
+        out.parts.push(Part { actor: Some(ai), start, len: actor.gaussians.len(), pose: Some((pose, rot)) });
     }
+}
+
+/// Appends the actor Gaussians `g` (box frame) placed at `pose` to the world set `w`, with the
+/// first `sh_coeffs(active_degree)` SH coefficients rotated; returns the SH rotation used.
+pub(crate) fn push_actor(g: &Gaussians, pose: &BoxPose, active_degree: usize, w: &mut Gaussians) -> ShRotation {
+    let k = sh_coeffs(active_degree) * 3;
+    let r = yaw_rotation(pose.heading);
+    let rot = ShRotation::new(g.sh_degree, r);
+    let (c, s) = ((pose.heading / 2.0).cos(), (pose.heading / 2.0).sin());
+    let mut buf = vec![0.0; k];
+    for i in 0..g.len() {
+        let m = g.means[i];
+        w.means.push(std::array::from_fn(|a| (0..3).map(|b| r[a][b] * m[b]).sum::<f64>() + pose.center[a]));
+        w.log_scales.push(g.log_scales[i]);
+        let [qw, qx, qy, qz] = g.rotations[i];
+        w.rotations.push([c * qw - s * qz, c * qx - s * qy, c * qy + s * qx, c * qz + s * qw]);
+        w.opacity_logits.push(g.opacity_logits[i]);
+        rot.to_world(g.sh_of(i), &mut buf, active_degree);
+        w.sh.extend_from_slice(&buf);
+    }
+    rot
 }
 
 /// Adds the world-frame gradients `gw` of a composed scene to per-model gradients `grads`

@@ -26,6 +26,7 @@ pub mod eval_boxes;
 pub mod eval_lidar;
 pub mod eval_pair_png;
 pub mod gt;
+pub mod host_drawer;
 pub mod image_check;
 pub mod init;
 pub mod loss;

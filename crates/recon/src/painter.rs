@@ -1,9 +1,11 @@
 //! One model drawn view after view (the videos): through the device drawer when the backend has a
 //! GPU (`device::DeviceDrawer`: the model uploaded once, each view composed on the device), else
-//! through `view::draw`, which composes the whole model on the host for every view. On a real
-//! log's 1.2 M Gaussians the per-view host composition and upload was most of a video's time. A
-//! model the device cannot hold in one SH degree, or a device error, draws on the host instead
-//! (with a log line), so the caller never needs to know.
+//! through the host drawer (`host_drawer::HostDrawer`: the background composed once, each actor's
+//! rows rebuilt only when its pose changes, the rasterizer's buffers kept). `view::draw` composes
+//! the whole model on the host for every view; on a real log's 1.2 M Gaussians the per-view host
+//! composition and upload was most of a GPU video's time, and a quarter of a CPU video's. A model
+//! the device cannot hold in one SH degree, or a device error, draws on the host instead (with a
+//! log line), so the caller never needs to know.
 //!
 //! `eval-recon` stays on `view::draw`: it scores its views in parallel, each composing on its own
 //! core, and through the painter (one device, one view at a time, one more kernel compilation) it
@@ -13,9 +15,10 @@
 use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::device::DeviceDrawer;
+use crate::host_drawer::HostDrawer;
 use crate::model::SceneModel;
 use crate::pose::BoxPose;
-use crate::view::{draw, Drawn};
+use crate::view::Drawn;
 use scene::Scene;
 use std::sync::Mutex;
 
@@ -25,6 +28,8 @@ pub struct Painter<'a, B: Backend> {
     pub scene: &'a Scene,
     /// The model on the device, where the backend has a GPU (one view at a time).
     device: Option<Mutex<DeviceDrawer>>,
+    /// The host's composition and buffers, kept between views (one view at a time).
+    host: Mutex<HostDrawer<B::Context>>,
 }
 
 impl<'a, B: Backend> Painter<'a, B> {
@@ -36,7 +41,7 @@ impl<'a, B: Backend> Painter<'a, B> {
                 None
             }
         });
-        Painter { backend, model, scene, device }
+        Painter { backend, model, scene, device, host: Mutex::new(HostDrawer::default()) }
     }
 
     /// `view::draw` of the painter's model from `cam` at time `t`.
@@ -54,6 +59,7 @@ impl<'a, B: Backend> Painter<'a, B> {
                 Err(e) => tracing::warn!(error = %e, "the device drawer failed; drawing on the host"),
             }
         }
-        draw(self.backend, self.model, self.scene, cam, t, layers, poses)
+        let mut h = self.host.lock().unwrap_or_else(|p| p.into_inner());
+        h.draw(self.backend, self.model, self.scene, cam, t, layers, poses)
     }
 }
