@@ -106,11 +106,26 @@ fn convert(
 pub fn read_scenes(inputs: &[PathBuf], expect: Expect, progress: &ProgressBar) -> Result<Vec<Scene>, IngestError> {
     let scenes = convert(inputs, expect, None, progress)?;
     for s in &scenes {
-        scene::validate::validate_scene(s, None).map_err(|(field, message)| {
-            IngestError::Scene(scene::SceneError::Invalid { file: PathBuf::from(&s.name), field, message })
-        })?;
+        validate_converted(inputs, s)?;
     }
     Ok(scenes)
+}
+
+/// Validates a converted scene's content; a failure names the input it came from (the one input,
+/// or the scene's first source file), not the output being written.
+fn validate_converted(inputs: &[PathBuf], s: &Scene) -> Result<(), IngestError> {
+    scene::validate::validate_scene(s, None).map_err(|(field, message)| {
+        let file = match (inputs, s.source.files.first()) {
+            ([one], _) => one.clone(),
+            (_, Some(f)) => PathBuf::from(f),
+            _ => inputs.first().cloned().unwrap_or_default(),
+        };
+        IngestError::Scene(scene::SceneError::Invalid {
+            file,
+            field,
+            message: format!("{message} (in the scene converted from this input)"),
+        })
+    })
 }
 
 /// A scene written by [`ingest`].
@@ -143,8 +158,51 @@ fn is_scene_output(dir: &Path) -> bool {
 
 /// Converts `inputs` into scene directories under `out`: a Frame segment or a single Scenario
 /// becomes the scene `out`; several Scenarios become `out/<scenario_id>/`. Nothing appears at
-/// `out` unless every input converted and validated.
+/// `out` unless every input converted and validated; on failure the folders above `out` that
+/// this call created are removed again.
 pub fn ingest(
+    inputs: &[PathBuf],
+    out: &Path,
+    expect: Expect,
+    overwrite: bool,
+    progress: &ProgressBar,
+) -> Result<Vec<Written>, IngestError> {
+    let missing = missing_parents(out);
+    let result = ingest_into(inputs, out, expect, overwrite, progress);
+    if result.is_err() {
+        for dir in &missing {
+            // Only empty folders go (anything another process put there stays); one that was never
+            // created is not there to remove.
+            match std::fs::remove_dir(dir) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => {
+                    tracing::warn!(dir = %dir.display(), error = %e, "a folder created for the output was not removed");
+                    break;
+                }
+            }
+        }
+    }
+    result
+}
+
+/// The folders above `out` that do not exist yet, deepest first.
+fn missing_parents(out: &Path) -> Vec<PathBuf> {
+    let mut missing = Vec::new();
+    let mut dir = out.parent();
+    while let Some(d) = dir.filter(|d| !d.as_os_str().is_empty()) {
+        // A `..` or `.` step is not a folder this call could create under that name.
+        let named = matches!(d.components().next_back(), Some(std::path::Component::Normal(_)));
+        if !named || std::fs::symlink_metadata(d).is_ok() {
+            break;
+        }
+        missing.push(d.to_path_buf());
+        dir = d.parent();
+    }
+    missing
+}
+
+fn ingest_into(
     inputs: &[PathBuf],
     out: &Path,
     expect: Expect,
@@ -182,6 +240,7 @@ pub fn ingest(
                 ),
             });
         }
+        validate_converted(inputs, s)?;
         let dir = staged.path().join(&rel);
         std::fs::create_dir_all(&dir).map_err(|e| IngestError::Io { file: dir.clone(), source: e })?;
         scene::write_scene(&dir, s)?;

@@ -3,16 +3,14 @@
 //! small hand-made PandaSet-like folders whose faults must be refused naming the file and
 //! field, with nothing left behind.
 
-use indicatif::ProgressBar;
-use ingest::{Expect, IngestError};
+mod common;
+
+use common::{refused, run, tiny};
+use ingest::Expect;
 use scene::glam::DVec3;
 use scene::{LoggedMotion, ObjectClass, Scene, Transform3};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
-
-fn run(input: &Path, out: &Path, expect: Expect) -> Result<Scene, IngestError> {
-    ingest::ingest(&[input.to_path_buf()], out, expect, false, &ProgressBar::hidden()).map(|mut w| w.remove(0).scene)
-}
+use std::path::Path;
 
 fn read_gz_json(p: &Path) -> Value {
     let bytes = ingest::pandaset::files::read_bytes(p).unwrap();
@@ -157,41 +155,6 @@ fn boxes_and_sweeps_hold_the_frame_time(s: &Scene, scene_dir: &Path, src: &Path)
     assert!(stored_at_frame as f64 >= 0.99 * at_frame as f64, "stored {stored_at_frame} vs raw {at_frame}");
 }
 
-/// A small PandaSet-like folder: 3 frames, 1 camera of 16x12, one sweep, one moving car.
-fn tiny(dir: &Path) -> PathBuf {
-    let root = dir.join("seq");
-    let cam = root.join("camera/front_camera");
-    std::fs::create_dir_all(&cam).unwrap();
-    std::fs::create_dir_all(root.join("lidar")).unwrap();
-    std::fs::create_dir_all(root.join("annotations/cuboids")).unwrap();
-    let pose = |y: f64, q: [f64; 4]| json!({"position": {"x": 0.0, "y": y, "z": 0.0}, "heading": {"w": q[0], "x": q[1], "y": q[2], "z": q[3]}});
-    // The LiDAR drives along its +y; the camera looks along +y too (OpenCV z = LiDAR +y).
-    let lidar_q = [1.0, 0.0, 0.0, 0.0];
-    let s = std::f64::consts::FRAC_1_SQRT_2;
-    let cam_q = [s, -s, 0.0, 0.0]; // world_from_cv: cv z -> world +y, cv y -> world -z
-    let write = |p: PathBuf, v: Value| std::fs::write(p, serde_json::to_vec(&v).unwrap()).unwrap();
-    write(root.join("lidar/poses.json"), json!([pose(0.0, lidar_q), pose(1.0, lidar_q), pose(2.0, lidar_q)]));
-    write(root.join("lidar/timestamps.json"), json!([100.0, 100.1, 100.2]));
-    write(cam.join("poses.json"), json!([pose(0.0, cam_q), pose(1.0, cam_q), pose(2.0, cam_q)]));
-    write(cam.join("timestamps.json"), json!([99.95, 100.05, 100.15]));
-    write(cam.join("intrinsics.json"), json!({"fx": 10.0, "fy": 10.0, "cx": 8.0, "cy": 6.0}));
-    for k in 0..3 {
-        image::RgbImage::from_pixel(16, 12, image::Rgb([90, 90, 90])).save(cam.join(format!("{k:02}.jpg"))).unwrap();
-        let car = json!([{"uuid": "a", "label": "Car", "yaw": 0.0, "position.x": 0.0, "position.y": 10.0 + k as f64,
-            "position.z": 0.7, "dimensions.x": 1.9, "dimensions.y": 4.5, "dimensions.z": 1.5,
-            "attributes.object_motion": "Moving", "cuboids.sibling_id": "-", "cuboids.sensor_id": -1, "camera_used": 1}]);
-        write(root.join(format!("annotations/cuboids/{k:02}.json")), car);
-    }
-    let mut sweep = Vec::new();
-    for i in 0..200 {
-        for v in [(i % 20) as f32 * 0.5 - 5.0, (i / 20) as f32, -1.5, 7.0] {
-            sweep.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    std::fs::write(root.join("lidar/00.bin"), sweep).unwrap();
-    root
-}
-
 #[test]
 fn tiny_pandaset_folder_converts() {
     let tmp = tempfile::tempdir().unwrap();
@@ -210,21 +173,6 @@ fn tiny_pandaset_folder_converts() {
     assert_eq!(lidar.points, 200);
     assert!(tmp.path().join("out").join(&lidar.path).is_file());
     assert!(s.frames[1].lidar.is_none());
-}
-
-/// Runs a broken copy and checks the error names `what` and nothing was written.
-fn refused(edit: impl FnOnce(&Path), what: &[&str]) {
-    let tmp = tempfile::tempdir().unwrap();
-    let src = tiny(tmp.path());
-    edit(&src);
-    let out = tmp.path().join("out");
-    let err = run(&src, &out, Expect::Auto).unwrap_err().to_string();
-    for w in what {
-        assert!(err.contains(w), "`{err}` does not name `{w}`");
-    }
-    assert!(!out.exists(), "output left behind after: {err}");
-    let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name()).collect();
-    assert_eq!(left, [std::ffi::OsString::from("seq")], "stray files after: {err}");
 }
 
 #[test]

@@ -3,10 +3,16 @@
 //!
 //! * **Siblings**: an object in the overlap of the two LiDARs may be annotated once per sensor
 //!   (`cuboids.sensor_id` 0 or 1), the two records naming each other in `cuboids.sibling_id`
-//!   (`-` or -1: a single annotation). Uuids linked that way, in any frame, are one object (a
-//!   union-find over the whole sequence), whose track id is the smallest uuid of the group. Per
-//!   frame one record is kept: the 360-degree sensor's (0), else the forward one's (1), else
-//!   the smallest uuid.
+//!   (`-` or -1: a single annotation). Uuids linked that way are one object (a union-find over
+//!   the whole sequence), whose track id is the smallest uuid of the group, if the link is
+//!   plausible: the two records are together in at least one frame, and in every frame they are
+//!   together they have the same class and centres at most [`SIBLING_MAX_GAP_M`] apart (on 002
+//!   every linked pair is of one class, at most 1.35 m apart). Other links are refused, with a
+//!   warning and a count (`CuboidReport::refused_sibling_links`); a link to a uuid that has no
+//!   record joins nothing. Per frame one record is kept: the 360-degree sensor's (0), else the
+//!   forward one's (1), else the smallest uuid. A uuid twice in one frame is warned about
+//!   (`CuboidReport::duplicate_uuid_records`), one record kept by the same rule.
+//! * **Records** are read by `cuboid_records` (budgets, field checks).
 //! * **Classes**: cars, pickups, trucks, buses, emergency and other road vehicles -> vehicle;
 //!   pedestrians (with or without an object) -> pedestrian; bicycles, motorcycles, scooters and
 //!   personal mobility devices -> cyclist; signs -> sign; everything else (cones, pylons,
@@ -20,16 +26,19 @@
 //! * **Speed** from positions: central differences of consecutive states over their frames'
 //!   times (one-sided at a track's ends). **Motion label** from `attributes.object_motion`.
 
-use crate::error::IngestError;
-use scene::frames::heading_from_pandaset_yaw;
+pub use super::cuboid_records::{parse_frame, parse_frame_within};
 use scene::glam::DVec3;
 use scene::{LoggedMotion, ObjectClass, Track, TrackState};
-use serde_json::{Map, Value};
-use std::collections::{BTreeMap, HashMap};
-use std::path::Path;
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 /// The most cuboids one frame may hold (PandaSet's busiest frames hold a few hundred).
 pub const MAX_CUBOIDS_PER_FRAME: usize = 20_000;
+/// The most cuboid records a whole log may hold: sequence 002 holds 9,365 over its 80 frames;
+/// a record takes about 250 bytes once read, so this is about 125 MB.
+pub const MAX_CUBOID_RECORDS: usize = 500_000;
+/// The farthest apart (m) two sibling records' centres may be in one frame: the same object
+/// boxed from two LiDARs (on 002 at most 1.35 m, median 0.2 m).
+pub const SIBLING_MAX_GAP_M: f64 = 3.0;
 /// The largest box side accepted (m): a semi-trailer is about 20 m.
 pub const MAX_BOX_SIDE_M: f64 = 60.0;
 
@@ -59,96 +68,6 @@ pub struct Cuboid {
     pub sensor_id: i64,
     /// The sibling annotation's uuid, if any.
     pub sibling: Option<String>,
-}
-
-fn field_err(file: &Path, record: usize, field: &str, message: impl Into<String>) -> IngestError {
-    IngestError::Field {
-        file: file.to_path_buf(),
-        field: format!("record {record} `{field}`"),
-        message: message.into(),
-    }
-}
-
-fn num(file: &Path, i: usize, rec: &Map<String, Value>, key: &str) -> Result<f64, IngestError> {
-    match rec.get(key) {
-        Some(Value::Number(n)) => {
-            n.as_f64().filter(|v| v.is_finite()).ok_or_else(|| field_err(file, i, key, "not finite"))
-        }
-        Some(Value::Null) => Err(field_err(file, i, key, "is null (NaN in the devkit's frame); expected a number")),
-        Some(other) => Err(field_err(file, i, key, format!("expected a number, got {other}"))),
-        None => Err(field_err(file, i, key, "missing")),
-    }
-}
-
-/// Parses one frame's cuboid file (already read, within the byte budget).
-pub fn parse_frame(file: &Path, bytes: &[u8]) -> Result<Vec<Cuboid>, IngestError> {
-    let records: Vec<Map<String, Value>> = serde_json::from_slice(bytes).map_err(|e| {
-        crate::error::content(file, format!("not a JSON list of cuboid records (to_json orient=records): {e}"))
-    })?;
-    if records.len() > MAX_CUBOIDS_PER_FRAME {
-        return Err(crate::error::content(
-            file,
-            format!("holds {} cuboids; at most {MAX_CUBOIDS_PER_FRAME} a frame", records.len()),
-        ));
-    }
-    records.iter().enumerate().map(|(i, rec)| parse_record(file, i, rec)).collect()
-}
-
-fn parse_record(file: &Path, i: usize, rec: &Map<String, Value>) -> Result<Cuboid, IngestError> {
-    let text = |key: &str| match rec.get(key) {
-        Some(Value::String(s)) if !s.is_empty() => Ok(s.clone()),
-        _ => Err(field_err(file, i, key, "expected a non-empty string")),
-    };
-    let (uuid, label) = (text("uuid")?, text("label")?);
-    let p = |k: &str| num(file, i, rec, k);
-    let center = DVec3::new(p("position.x")?, p("position.y")?, p("position.z")?);
-    if center.abs().max_element() > 1e7 {
-        return Err(field_err(file, i, "position", format!("{center} is more than 10,000 km from the origin")));
-    }
-    let (w, l, h) = (p("dimensions.x")?, p("dimensions.y")?, p("dimensions.z")?);
-    for (k, v) in [("dimensions.x", w), ("dimensions.y", l), ("dimensions.z", h)] {
-        if !(v > 0.0 && v <= MAX_BOX_SIDE_M) {
-            return Err(field_err(file, i, k, format!("{v} m; expected a box side in (0, {MAX_BOX_SIDE_M}] m")));
-        }
-    }
-    let yaw = p("yaw")?;
-    if yaw.abs() > 100.0 {
-        return Err(field_err(file, i, "yaw", format!("{yaw} rad is not an angle")));
-    }
-    let motion = match rec.get("attributes.object_motion") {
-        Some(Value::String(s)) => match s.as_str() {
-            "Moving" => Some(LoggedMotion::Moving),
-            "Stopped" => Some(LoggedMotion::Stopped),
-            "Parked" => Some(LoggedMotion::Parked),
-            other => {
-                return Err(field_err(
-                    file,
-                    i,
-                    "attributes.object_motion",
-                    format!("`{other}`; expected Moving, Stopped, Parked or null"),
-                ))
-            }
-        },
-        _ => None,
-    };
-    let sensor_id = match rec.get("cuboids.sensor_id") {
-        Some(Value::Number(n)) => n.as_i64().unwrap_or(-1),
-        _ => -1,
-    };
-    let sibling = match rec.get("cuboids.sibling_id") {
-        Some(Value::String(s)) if s != "-" && !s.is_empty() && *s != uuid => Some(s.clone()),
-        _ => None,
-    };
-    Ok(Cuboid {
-        uuid,
-        label,
-        center,
-        heading: heading_from_pandaset_yaw(yaw),
-        size_lwh: [l, w, h],
-        motion,
-        sensor_id,
-        sibling,
-    })
 }
 
 /// Union-find over uuids: each group's representative is its smallest uuid.
@@ -181,6 +100,10 @@ pub struct CuboidReport {
     pub records: usize,
     /// Records dropped as the second annotation of an object already kept in that frame.
     pub sibling_duplicates: usize,
+    /// Sibling links (pairs of uuids) refused as not one object (see the module comment).
+    pub refused_sibling_links: usize,
+    /// Records whose uuid another record of the same frame has too.
+    pub duplicate_uuid_records: usize,
     /// Records per PandaSet label.
     pub labels: BTreeMap<String, usize>,
 }
@@ -195,9 +118,26 @@ pub fn tracks(frames: &[Vec<Cuboid>], times: &[f64]) -> (Vec<Track>, CuboidRepor
     let mut report = CuboidReport::default();
     for c in frames.iter().flatten() {
         groups.find(&c.uuid);
-        if let Some(s) = &c.sibling {
-            groups.union(&c.uuid, s);
-        }
+    }
+    let links = check_links(frames);
+    for (a, b) in &links.accepted {
+        groups.union(a, b);
+    }
+    report.refused_sibling_links = links.refused.len();
+    report.duplicate_uuid_records = links.duplicates.len();
+    if let Some(first) = links.refused.first() {
+        tracing::warn!(
+            refused = links.refused.len(),
+            first = %first,
+            "sibling links refused as not one object (different classes or more than {SIBLING_MAX_GAP_M} m apart \
+             in a frame, or never in one frame together): their tracks stay apart"
+        );
+    }
+    for d in links.duplicates.iter().take(3) {
+        tracing::warn!("{d}; one record kept");
+    }
+    if links.duplicates.len() > 3 {
+        tracing::warn!(records = links.duplicates.len(), "records share a uuid with another record of their frame");
     }
     // (track id) -> (class votes, frame -> chosen cuboid)
     let mut by_id: BTreeMap<String, Gathered> = BTreeMap::new();
@@ -244,6 +184,65 @@ pub fn tracks(frames: &[Vec<Cuboid>], times: &[f64]) -> (Vec<Track>, CuboidRepor
         })
         .collect();
     (tracks, report)
+}
+
+/// The sibling links checked (see the module comment), and the records whose uuid is taken in
+/// their frame.
+#[derive(Default)]
+struct Links {
+    accepted: Vec<(String, String)>,
+    /// Why each refused link was refused.
+    refused: Vec<String>,
+    duplicates: Vec<String>,
+}
+
+fn check_links(frames: &[Vec<Cuboid>]) -> Links {
+    #[derive(Default)]
+    struct Evidence {
+        together: bool,
+        against: Option<String>,
+    }
+    let mut evidence: BTreeMap<(&str, &str), Evidence> = BTreeMap::new();
+    let mut links = Links::default();
+    for (f, cuboids) in frames.iter().enumerate() {
+        let mut by_uuid: HashMap<&str, &Cuboid> = HashMap::with_capacity(cuboids.len());
+        for c in cuboids {
+            if let Some(first) = by_uuid.insert(&c.uuid, c) {
+                by_uuid.insert(&first.uuid, first);
+                links.duplicates.push(format!(
+                    "uuid {} appears twice in frame {f} ({} and {}, {:.1} m apart)",
+                    c.uuid,
+                    first.label,
+                    c.label,
+                    (c.center - first.center).length()
+                ));
+            }
+        }
+        for c in cuboids {
+            let Some(s) = c.sibling.as_deref() else { continue };
+            let key = if c.uuid.as_str() <= s { (c.uuid.as_str(), s) } else { (s, c.uuid.as_str()) };
+            let e = evidence.entry(key).or_default();
+            let Some(sib) = by_uuid.get(s) else { continue };
+            e.together = true;
+            let (a, b) = (class_of(&c.label), class_of(&sib.label));
+            let gap = (c.center - sib.center).length();
+            if e.against.is_none() && (a != b || gap.is_nan() || gap > SIBLING_MAX_GAP_M) {
+                e.against = Some(format!("{} and {} at frame {f}: {a:?} and {b:?}, {gap:.1} m apart", c.uuid, s));
+            }
+        }
+    }
+    let seen: HashSet<&str> = frames.iter().flatten().map(|c| c.uuid.as_str()).collect();
+    for ((a, b), e) in evidence {
+        match e.against {
+            Some(why) => links.refused.push(why),
+            None if e.together => links.accepted.push((a.to_string(), b.to_string())),
+            None if seen.contains(a) && seen.contains(b) => {
+                links.refused.push(format!("{a} and {b}: never in one frame together, so not checked"))
+            }
+            None => {} // the sibling has no record: nothing to join
+        }
+    }
+    links
 }
 
 /// World velocity at state `k` from the positions of its neighbours on consecutive frames
