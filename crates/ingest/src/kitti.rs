@@ -9,9 +9,17 @@
 //! Frames: the ego origin sits on the road `KITTI_CAMERA_HEIGHT_M` (1.65 m) below the left
 //! camera, axes parallel to the left camera's (x forward, y left, z up); the world is KITTI's
 //! turned z-up with its origin on the road below the frame-0 camera (`scene::frames`). The PNG
-//! bytes are copied unchanged (grey stays grey). Every check happens before anything is copied.
+//! bytes are copied unchanged (grey stays grey).
+//!
+//! Every input file is opened through `crate::input_file`: a FIFO, device, directory, looping
+//! or dangling link, or unreadable file where a text file or image is expected is refused,
+//! naming it (never waited on); the text files are read within `MAX_TEXT_BYTES` and images
+//! within `MAX_IMAGE_BYTES`, from their sizes before reading, and only the image headers are read
+//! for the sizes. The intrinsics of `P0` are checked for the image size
+//! (`camera_check::check_intrinsics`). KITTI's `velodyne/` sweeps are not read.
 
 use crate::error::{content, IngestError};
+use crate::input_file::{copy_regular, image_size, is_there, read_text};
 use scene::format::{image_rel_path_ext, IMAGES_DIR};
 use scene::frames::{waymo_camera_from_kitti_camera, world_from_kitti_world, KITTI_CAMERA_HEIGHT_M};
 use scene::glam::{DMat3, DVec3};
@@ -25,9 +33,11 @@ use std::path::Path;
 pub const LEFT: &str = "LEFT";
 pub const RIGHT: &str = "RIGHT";
 
-/// True when `dir` looks like a KITTI odometry sequence folder.
+/// True when `dir` looks like a KITTI odometry sequence folder: something at `calib.txt` and
+/// `poses.txt` (one that is not a usable file is refused by [`read`], naming it) and an
+/// `image_0/` folder.
 pub fn looks_like(dir: &Path) -> bool {
-    dir.join("calib.txt").is_file() && dir.join("poses.txt").is_file() && dir.join("image_0").is_dir()
+    is_there(&dir.join("calib.txt")) && is_there(&dir.join("poses.txt")) && dir.join("image_0").is_dir()
 }
 
 /// One non-empty line of numbers: 1-based line number, optional `label:` prefix, the values.
@@ -35,7 +45,7 @@ type NumericLine = (usize, Option<String>, Vec<f64>);
 
 /// Non-empty lines of a text file, each checked to hold `n` numbers.
 fn numeric_lines(file: &Path, n: usize, what: &str) -> Result<Vec<NumericLine>, IngestError> {
-    let text = std::fs::read_to_string(file).map_err(|e| IngestError::Io { file: file.to_path_buf(), source: e })?;
+    let text = read_text(file)?;
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let mut words: Vec<&str> = line.split_whitespace().collect();
@@ -68,6 +78,27 @@ fn numeric_lines(file: &Path, n: usize, what: &str) -> Result<Vec<NumericLine>, 
 struct Calib {
     k: Intrinsics,
     baseline_m: f64,
+    /// The line of `P0` in `calib.txt`.
+    p0_line: usize,
+}
+
+/// Refuses `P0`'s intrinsics when implausible for the `width` x `height` images
+/// (`camera_check::check_intrinsics`), naming `file`, the line, the matrix entry, its value and
+/// the allowed range.
+fn check_calib_intrinsics(file: &Path, calib: &Calib, width: u32, height: u32) -> Result<(), IngestError> {
+    crate::camera_check::check_intrinsics(&calib.k, width, height).map_err(|(field, m)| {
+        let entry = match field {
+            "fx" => "P0[0][0]",
+            "fy" => "P0[1][1]",
+            "cx" => "P0[0][2]",
+            _ => "P0[1][2]",
+        };
+        IngestError::Line {
+            file: file.to_path_buf(),
+            line: calib.p0_line,
+            message: format!("{entry}: {m}, for the {width}x{height} images"),
+        }
+    })
 }
 
 fn read_calib(file: &Path) -> Result<Calib, IngestError> {
@@ -104,31 +135,37 @@ fn read_calib(file: &Path) -> Result<Calib, IngestError> {
             format!("P1[0][3] = {} gives a baseline of {baseline_m} m (the right camera must be at +x)", p1[3]),
         ));
     }
-    Ok(Calib { k, baseline_m })
+    Ok(Calib { k, baseline_m, p0_line: *l0 })
 }
 
 fn png_names(dir: &Path) -> Result<Vec<String>, IngestError> {
     let rd = std::fs::read_dir(dir).map_err(|e| IngestError::Io { file: dir.to_path_buf(), source: e })?;
-    let mut names: Vec<String> = rd
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.to_ascii_lowercase().ends_with(".png"))
-        .collect();
+    let mut names = Vec::new();
+    for e in rd {
+        let n = e.map_err(|e| IngestError::Io { file: dir.to_path_buf(), source: e })?.file_name();
+        let n = n.to_string_lossy().into_owned();
+        if n.to_ascii_lowercase().ends_with(".png") {
+            names.push(n);
+        }
+    }
     names.sort();
     Ok(names)
 }
 
+/// A PNG's width and height from its header (`input_file::image_size`).
 fn png_size(path: &Path) -> Result<(u32, u32), IngestError> {
-    image::ImageReader::open(path)
-        .and_then(|r| r.with_guessed_format())
-        .map_err(|e| IngestError::Io { file: path.to_path_buf(), source: e })?
-        .into_dimensions()
-        .map_err(|e| content(path, format!("not a readable PNG image: {e}")))
+    image_size(path).map_err(|e| match e {
+        IngestError::Content { file, message } if message.starts_with("not a readable image") => {
+            content(file, message.replacen("not a readable image", "not a readable PNG image", 1))
+        }
+        other => other,
+    })
 }
 
 /// Reads a KITTI odometry folder; with `staging`, copies the images under it.
 pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBar) -> Result<Scene, IngestError> {
-    let calib = read_calib(&dir.join("calib.txt"))?;
+    let calib_file = dir.join("calib.txt");
+    let calib = read_calib(&calib_file)?;
     let (left_dir, right_dir) = (dir.join("image_0"), dir.join("image_1"));
     let names = png_names(&left_dir)?;
     if names.is_empty() {
@@ -169,6 +206,8 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         }
     }
     let (width, height) = png_size(&left_dir.join(&names[0]))?;
+    scene::camera::check_camera_size(width.into(), height.into()).map_err(|m| content(left_dir.join(&names[0]), m))?;
+    check_calib_intrinsics(&calib_file, &calib, width, height)?;
     let h = KITTI_CAMERA_HEIGHT_M;
     let camera = |name: &str, y: f64| Camera {
         name: name.into(),
@@ -219,7 +258,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
             }
             let rel = image_rel_path_ext(i, cam, "png");
             if let Some(root) = staging {
-                std::fs::copy(&src, root.join(&rel)).map_err(|e| IngestError::Io { file: src.clone(), source: e })?;
+                copy_regular(&src, &root.join(&rel))?;
             }
             images.push(ImageRef::at_frame_time(cam, rel));
         }

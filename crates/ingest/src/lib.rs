@@ -10,6 +10,7 @@ pub mod camera_check;
 pub mod detect;
 pub mod error;
 pub mod folder;
+pub mod input_file;
 pub mod kitti;
 pub mod pandaset;
 pub mod proto;

@@ -10,8 +10,18 @@
 //! once here (`undistort`, same `K` and size) and written as JPEG at quality
 //! [`UNDISTORTED_JPEG_QUALITY`]; undistorted inputs are copied byte for byte. Units are the
 //! file's own (instant-ngp scenes are not metric).
+//!
+//! `transforms.json` and every image it names are opened through `crate::input_file`: a FIFO,
+//! device, directory, looping or dangling link, or unreadable file in their place is refused,
+//! naming it (never waited on, never taken for a missing image); `transforms.json` is read
+//! within `MAX_JSON_BYTES` and images within `MAX_IMAGE_BYTES`, from their sizes before
+//! reading, with only the header read where just the size is needed. Each camera's intrinsics
+//! are checked for its image size (`camera_check::check_intrinsics`), the error naming the key
+//! where it is written (`frames[3].fl_x`, or `camera_angle_x` when the focal length comes from
+//! the angle).
 
 use crate::error::{content, IngestError};
+use crate::input_file::{copy_regular, decode_image, image_size, is_there, presence, MAX_IMAGE_BYTES};
 use crate::undistort::undistort;
 use rayon::prelude::*;
 use scene::format::{image_rel_path_ext, IMAGES_DIR};
@@ -68,25 +78,38 @@ struct FileJson {
     frames: Vec<FrameJson>,
 }
 
-/// True when `dir` holds a `transforms.json`.
+/// True when `dir` holds something named `transforms.json` (one that is not a usable file is
+/// refused by [`read`], naming it).
 pub fn looks_like(dir: &Path) -> bool {
-    dir.join(FILE_NAME).is_file()
+    is_there(&dir.join(FILE_NAME))
 }
 
 fn field_err(file: &Path, field: String, message: impl Into<String>) -> IngestError {
     IngestError::Field { file: file.to_path_buf(), field, message: message.into() }
 }
 
-/// The image a frame names; NeRF-synthetic files omit the extension (`./train/r_0`).
-fn resolve_image(dir: &Path, rel: &str) -> Option<PathBuf> {
-    let p = dir.join(rel);
-    if p.is_file() {
-        return Some(p);
+/// The image a frame names; NeRF-synthetic files omit the extension (`./train/r_0`). `Ok(None)`
+/// when nothing is there under any of the names; something there that is not a regular file is
+/// refused, naming it (`input_file::presence`), and so is an image past `MAX_IMAGE_BYTES`.
+fn resolve_image(dir: &Path, rel: &str) -> Result<Option<PathBuf>, IngestError> {
+    let exact = dir.join(rel);
+    let candidates =
+        std::iter::once(exact).chain(["png", "jpg", "jpeg"].iter().map(|e| dir.join(format!("{rel}.{e}"))));
+    for p in candidates {
+        if presence(&p)? {
+            let len = crate::input_file::stat(&p)?.map_or(0, |m| m.len());
+            if len > MAX_IMAGE_BYTES {
+                return Err(content(&p, format!("is {len} bytes; an image may have at most {MAX_IMAGE_BYTES} bytes")));
+            }
+            return Ok(Some(p));
+        }
     }
-    ["png", "jpg", "jpeg"].iter().map(|e| dir.join(format!("{rel}.{e}"))).find(|p| p.is_file())
+    Ok(None)
 }
 
-fn camera_of(file: &Path, field: &str, i: &Intr, image: &Path) -> Result<Camera, IngestError> {
+/// The camera of a frame whose own intrinsics keys are `own` and merged ones (its own over the
+/// file's shared ones) `i`; `field` is the frame's prefix (`frames[3].`).
+fn camera_of(file: &Path, field: &str, own: &Intr, i: &Intr, image: &Path) -> Result<Camera, IngestError> {
     if let Some(m) = &i.camera_model {
         if !matches!(m.as_str(), "OPENCV" | "PINHOLE" | "SIMPLE_PINHOLE") {
             return Err(field_err(
@@ -99,11 +122,7 @@ fn camera_of(file: &Path, field: &str, i: &Intr, image: &Path) -> Result<Camera,
     let (w, h) = match (i.w, i.h) {
         (Some(w), Some(h)) => (w, h),
         _ => {
-            let (w, h) = image::ImageReader::open(image)
-                .and_then(|r| r.with_guessed_format())
-                .map_err(|e| IngestError::Io { file: image.to_path_buf(), source: e })?
-                .into_dimensions()
-                .map_err(|e| content(image, format!("not a readable image: {e}")))?;
+            let (w, h) = image_size(image)?;
             (w as f64, h as f64)
         }
     };
@@ -131,9 +150,23 @@ fn camera_of(file: &Path, field: &str, i: &Intr, image: &Path) -> Result<Camera,
         p2: i.p2.unwrap_or(0.0),
         k3: i.k3.unwrap_or(0.0),
     };
-    let all = [k.fx, k.fy, k.cx, k.cy, d.k1, d.k2, d.p1, d.p2, d.k3];
-    if all.iter().any(|v| !v.is_finite()) || k.fx <= 0.0 || k.fy <= 0.0 {
-        return Err(field_err(file, format!("{field}fl_x"), "intrinsics must be finite with positive focal lengths"));
+    crate::camera_check::check_intrinsics(&k, w as u32, h as u32).map_err(|(name, m)| {
+        // The key the value came from, where it is written (the frame's own or the shared one).
+        let (key, own) = match name {
+            "fx" if i.fl_x.is_none() => ("camera_angle_x", own.camera_angle_x.is_some()),
+            "fx" => ("fl_x", own.fl_x.is_some()),
+            "fy" if i.fl_y.is_none() && i.camera_angle_y.is_some() => ("camera_angle_y", own.camera_angle_y.is_some()),
+            "fy" if i.fl_y.is_none() => ("fl_x", own.fl_x.is_some()),
+            "fy" => ("fl_y", own.fl_y.is_some()),
+            "cx" => ("cx", own.cx.is_some()),
+            _ => ("cy", own.cy.is_some()),
+        };
+        let at = if own { format!("{field}{key}") } else { key.to_string() };
+        field_err(file, at, format!("{m}, for the {w}x{h} image"))
+    })?;
+    let coeffs = [d.k1, d.k2, d.p1, d.p2, d.k3];
+    if coeffs.iter().any(|v| !v.is_finite()) {
+        return Err(field_err(file, format!("{field}k1"), "distortion coefficients must be finite"));
     }
     Ok(Camera {
         name: String::new(),
@@ -174,14 +207,10 @@ fn write_image(src: &Path, cam: &Camera, staging: &Path, frame: usize) -> Result
     };
     if cam.distortion.is_zero() {
         let rel = image_rel_path_ext(frame, &cam.name, ext);
-        std::fs::copy(src, staging.join(&rel)).map_err(|e| IngestError::Io { file: src.to_path_buf(), source: e })?;
+        copy_regular(src, &staging.join(&rel))?;
         return Ok(rel);
     }
-    let img = image::ImageReader::open(src)
-        .and_then(|r| r.with_guessed_format())
-        .map_err(|e| IngestError::Io { file: src.to_path_buf(), source: e })?
-        .decode()
-        .map_err(|e| content(src, format!("cannot decode: {e}")))?;
+    let img = decode_image(src)?;
     if (img.width(), img.height()) != (cam.width, cam.height) {
         return Err(content(
             src,
@@ -228,10 +257,9 @@ const INTRINSIC_KEYS: [&str; 14] = [
 ];
 
 /// A parse error reported at `.` (inside a flattened struct) names the intrinsics key at fault.
-fn name_flattened_field(file: &Path, e: scene::SceneError) -> IngestError {
+fn name_flattened_field(file: &Path, bytes: &[u8], e: scene::SceneError) -> IngestError {
     let at_root = matches!(&e, scene::SceneError::Json { field, .. } if field == "." || field.is_empty());
-    let Some(v) = at_root.then(|| std::fs::read(file).ok()).flatten().and_then(|b| serde_json::from_slice(&b).ok())
-    else {
+    let Some(v) = at_root.then(|| serde_json::from_slice(bytes).ok()).flatten() else {
         return e.into();
     };
     let v: serde_json::Value = v;
@@ -257,7 +285,13 @@ fn name_flattened_field(file: &Path, e: scene::SceneError) -> IngestError {
 /// Reads `dir/transforms.json`; with `staging`, writes the (undistorted) images under it.
 pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBar) -> Result<Scene, IngestError> {
     let file = dir.join(FILE_NAME);
-    let parsed: FileJson = scene::format::read_json(&file).map_err(|e| name_flattened_field(&file, e))?;
+    let bytes = crate::input_file::read_capped(&file, crate::input_file::MAX_JSON_BYTES, "transforms.json")?;
+    let de = &mut serde_json::Deserializer::from_slice(&bytes);
+    let parsed: FileJson = serde_path_to_error::deserialize(de).map_err(|e| {
+        let e =
+            scene::SceneError::Json { file: file.clone(), field: e.path().to_string(), message: e.inner().to_string() };
+        name_flattened_field(&file, &bytes, e)
+    })?;
     if parsed.frames.is_empty() {
         return Err(field_err(&file, "frames".into(), "no frames"));
     }
@@ -269,10 +303,10 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
     for (k, &j) in order.iter().enumerate() {
         let f = &parsed.frames[j];
         let field = format!("frames[{j}].");
-        let src = resolve_image(dir, &f.file_path).ok_or_else(|| {
+        let src = resolve_image(dir, &f.file_path)?.ok_or_else(|| {
             content(dir.join(&f.file_path), format!("missing (named by `{field}file_path` of {})", file.display()))
         })?;
-        let mut cam = camera_of(&file, &field, &f.intr.over(&parsed.intr), &src)?;
+        let mut cam = camera_of(&file, &field, &f.intr, &f.intr.over(&parsed.intr), &src)?;
         check_distortion_of(&file, &field, &f.intr, &cam)?;
         let same = |c: &Camera| {
             (c.width, c.height, c.intrinsics, c.distortion) == (cam.width, cam.height, cam.intrinsics, cam.distortion)

@@ -96,6 +96,15 @@ fn convert_camera(file: &Path, index: usize, k: usize, c: &proto::CameraCalibrat
     let intrinsics = Intrinsics { fx: i[0], fy: i[1], cx: i[2], cy: i[3] };
     let distortion = Distortion { k1: i[4], k2: i[5], p1: i[6], p2: i[7], k3: i[8] };
     scene::camera::check_intrinsics(&intrinsics).map_err(|m| invalid(file, index, f("intrinsic"), m))?;
+    crate::camera_check::check_intrinsics(&intrinsics, w as u32, h as u32).map_err(|(name, m)| {
+        let at = match name {
+            "fx" => 0,
+            "fy" => 1,
+            "cx" => 2,
+            _ => 3,
+        };
+        invalid(file, index, f(&format!("intrinsic[{at}]")), format!("{m}, for the {w}x{h} image"))
+    })?;
     crate::camera_check::check_distortion(&intrinsics, &distortion, w as u32, h as u32)
         .map_err(|m| invalid(file, index, f("intrinsic"), format!("distortion [k1, k2, p1, p2, k3]: {m}")))?;
     let rolling_shutter = match c.rolling_shutter_direction.map(RollingShutterReadOutDirection::try_from) {
@@ -385,4 +394,31 @@ fn rename(staging: Option<&Path>, from: Option<PathBuf>, rel: &str) -> Result<()
         std::fs::rename(&from, &to).map_err(|e| IngestError::Io { file: to, source: e })?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn calibration(intrinsic: [f64; 4]) -> proto::CameraCalibration {
+        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        proto::CameraCalibration {
+            name: Some(1),
+            intrinsic: intrinsic.iter().copied().chain([0.0; 5]).collect(),
+            extrinsic: Some(proto::Transform { transform: identity.to_vec() }),
+            width: Some(960),
+            height: Some(540),
+            rolling_shutter_direction: None,
+        }
+    }
+
+    #[test]
+    fn implausible_camera_intrinsics_are_refused_naming_the_entry() {
+        let file = Path::new("seg.tfrecord");
+        convert_camera(file, 0, 0, &calibration([1000.0, 1000.0, 480.0, 270.0])).unwrap();
+        let e = convert_camera(file, 3, 0, &calibration([1e-300, 1000.0, 480.0, 270.0])).unwrap_err().to_string();
+        assert!(e.contains("record 3") && e.contains("intrinsic[0]") && e.contains("[9.6, 960000.0]"), "{e}");
+        let e = convert_camera(file, 3, 0, &calibration([1000.0, 1000.0, -900000.0, 270.0])).unwrap_err().to_string();
+        assert!(e.contains("intrinsic[2]") && e.contains("-900000.0") && e.contains("[-960.0, 1920.0]"), "{e}");
+    }
 }

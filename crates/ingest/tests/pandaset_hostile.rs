@@ -7,13 +7,14 @@
 
 mod common;
 
-use common::{car, refused, refused_at, run, tiny, tiny_frames, write_json};
+use common::{
+    car, mkfifo, permissions_ignored, refused, refused_at, run, symlink, tiny, tiny_frames, within, write_json,
+};
 use ingest::Expect;
 use scene::glam::DVec3;
 use serde_json::{json, Value};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 fn edit_json(p: &Path, f: impl FnOnce(&mut Value)) {
     let mut v: Value = serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
@@ -35,38 +36,6 @@ fn set_all(p: &Path, path: &[&str], value: impl Fn(usize) -> Value) {
 
 fn sweep_bytes(points: &[[f32; 4]]) -> Vec<u8> {
     points.iter().flatten().flat_map(|v| v.to_le_bytes()).collect()
-}
-
-fn mkfifo(p: &Path) {
-    let _ = std::fs::remove_file(p);
-    let ok = std::process::Command::new("mkfifo").arg(p).status().unwrap().success();
-    assert!(ok, "mkfifo {}", p.display());
-}
-
-fn symlink(target: impl AsRef<Path>, link: &Path) {
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(target, link).unwrap();
-}
-
-/// Runs `f` on its own thread and fails the test if it has not returned within `secs` (an
-/// open of a FIFO nobody writes never returns).
-fn within<T: Send + 'static>(secs: u64, what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    rx.recv_timeout(Duration::from_secs(secs)).unwrap_or_else(|_| panic!("{what}: ingest still blocked after {secs} s"))
-}
-
-/// True when this process can read what `chmod 000` forbids (root): permission tests skip.
-fn permissions_ignored(dir: &Path) -> bool {
-    let probe = dir.join("probe");
-    std::fs::create_dir(&probe).unwrap();
-    std::fs::set_permissions(&probe, std::os::unix::fs::PermissionsExt::from_mode(0o000)).unwrap();
-    let ignored = std::fs::read_dir(&probe).is_ok();
-    std::fs::set_permissions(&probe, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
-    std::fs::remove_dir(&probe).unwrap();
-    ignored
 }
 
 /// A 16x12 JPEG whose frame header claims `w` x `h`.
@@ -251,6 +220,28 @@ fn out_of_range_numbers_are_refused() {
     refused(|d| all_times(d, &|i| 1e300 * (1 + i) as f64), &["lidar/timestamps.json", "[0]", "1e11"]);
     // Times 1e-310 s apart: every speed would be infinite (fuzz case `t_tiny_spacing`).
     refused(|d| all_times(d, &|i| 1e-310 * i as f64), &["lidar/timestamps.json", "[1]", "1e-6 s"]);
+}
+
+#[test]
+fn implausible_intrinsics_for_the_image_are_refused() {
+    // The tiny camera's images are 16x12: fx, fy within [0.16, 16000], cx within [-16, 32],
+    // cy within [-12, 24] (fuzz cases: fx = 1e-300, cx = -900000 on a 960 px image).
+    let k = |d: &Path, v: Value| write_json(&d.join("camera/front_camera/intrinsics.json"), &v);
+    refused(
+        |d| k(d, json!({"fx": 1e-300, "fy": 10.0, "cx": 8.0, "cy": 6.0})),
+        &["front_camera/intrinsics.json", "`fx`", "1e-300", "[0.16, 16000.0]", "16x12"],
+    );
+    refused(
+        |d| k(d, json!({"fx": 10.0, "fy": 10.0, "cx": -900000.0, "cy": 6.0})),
+        &["front_camera/intrinsics.json", "`cx`", "-900000.0", "[-16.0, 32.0]"],
+    );
+    refused(|d| k(d, json!({"fx": 10.0, "fy": 16001.0, "cx": 8.0, "cy": 6.0})), &["`fy`", "16001.0"]);
+    refused(|d| k(d, json!({"fx": 10.0, "fy": 10.0, "cx": 8.0, "cy": 25.0})), &["`cy`", "[-12.0, 24.0]"]);
+    // The bounds themselves pass.
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tiny(tmp.path());
+    k(&src, json!({"fx": 0.16, "fy": 16000.0, "cx": -16.0, "cy": 24.0}));
+    run(&src, &tmp.path().join("out"), Expect::Auto).unwrap();
 }
 
 #[test]

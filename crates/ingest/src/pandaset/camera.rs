@@ -4,23 +4,17 @@
 //! logged camera poses. A camera folder with a fault is refused, naming the input file, never
 //! dropped: a scene silently missing a camera would look like a smaller rig.
 
-use super::files::{open_regular, presence, read_intrinsics, read_poses, read_times, stat};
+use super::files::{check_intrinsics, presence, read_intrinsics, read_poses, read_times, stat};
 use crate::error::{content, IngestError};
+use crate::input_file::image_size;
+pub use crate::input_file::MAX_IMAGE_BYTES;
 use scene::frames::cv_from_waymo_camera;
 use scene::glam::{DMat3, DQuat, DVec3};
 use scene::{Camera, Distortion, Frame, Intrinsics, RollingShutter, Transform3};
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The JSON files every camera folder needs.
 pub const CAMERA_FILES: [&str; 3] = ["intrinsics.json", "poses.json", "timestamps.json"];
-/// The largest image file accepted (bytes), checked from its size before it is read: a
-/// 4096x4096 PNG (the camera pixel budget) fits; PandaSet's 1920x1080 JPEGs are about 300 KB.
-pub const MAX_IMAGE_BYTES: u64 = 64 << 20;
-/// How much of an image is read for its size first: the header is at the start, and the JPEG
-/// decoder reads all it is given.
-const HEADER_BYTES: u64 = 1 << 20;
-
 /// The camera folders under `cam_root`, sorted by name: every sub-folder (symbolic links
 /// followed) that holds images or one of [`CAMERA_FILES`]. Each must have a name a scene camera
 /// may have (letters, digits, `_`, `-`) and all of [`CAMERA_FILES`]; a folder that cannot be
@@ -84,42 +78,10 @@ pub struct CameraData {
     pub images: Vec<PathBuf>,
 }
 
-fn dimensions(bytes: &[u8]) -> Result<(u32, u32), String> {
-    let r = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
-    r.into_dimensions().map_err(|e| e.to_string())
-}
-
-/// An image's width and height from its header, the file refused past [`MAX_IMAGE_BYTES`]
-/// before it is read.
-fn image_size(path: &Path) -> Result<(u32, u32), IngestError> {
-    let io = |e| IngestError::Io { file: path.to_path_buf(), source: e };
-    let f = open_regular(path)?;
-    let len = f.metadata().map_err(io)?.len();
-    if len > MAX_IMAGE_BYTES {
-        return Err(content(
-            path,
-            format!("is {len} bytes; an image may have at most {MAX_IMAGE_BYTES} (64 MiB: a 4096x4096 PNG fits)"),
-        ));
-    }
-    let mut bytes = Vec::new();
-    let mut f = f.take(HEADER_BYTES);
-    f.read_to_end(&mut bytes).map_err(io)?;
-    let first = dimensions(&bytes);
-    let size = match first {
-        // A header past the first megabyte (large metadata blocks): the whole file, within the cap.
-        Err(_) if (bytes.len() as u64) < len => {
-            let f = f.into_inner();
-            f.take(MAX_IMAGE_BYTES - HEADER_BYTES).read_to_end(&mut bytes).map_err(io)?;
-            dimensions(&bytes)
-        }
-        other => other,
-    };
-    size.map_err(|e| content(path, format!("not a readable image: {e}")))
-}
-
 pub fn read_camera(dir: &Path, name: &str, frames: &[Frame], lidar_times: &[f64]) -> Result<CameraData, IngestError> {
     let n = frames.len();
-    let k = read_intrinsics(&dir.join("intrinsics.json"))?;
+    let k_file = dir.join("intrinsics.json");
+    let k = read_intrinsics(&k_file)?;
     let poses_file = dir.join("poses.json");
     let poses = read_poses(&poses_file)?;
     let times_file = dir.join("timestamps.json");
@@ -147,6 +109,7 @@ pub fn read_camera(dir: &Path, name: &str, frames: &[Frame], lidar_times: &[f64]
     }
     let (width, height) = image_size(&images[0])?;
     scene::camera::check_camera_size(width.into(), height.into()).map_err(|m| content(&images[0], m))?;
+    check_intrinsics(&k_file, &k, width, height)?;
     for p in &images[1..] {
         let size = image_size(p)?;
         if size != (width, height) {

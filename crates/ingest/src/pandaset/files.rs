@@ -2,8 +2,9 @@
 //! within size budgets and value ranges, so a hostile or wrong file is refused before it is held
 //! in memory or its numbers reach the scene. Every input is checked to be a regular file before
 //! it is opened (a FIFO would block the open forever; a directory or device is never a PandaSet
-//! file), and something that is there but unusable is never taken for absent. Every error names
-//! the file and, where it applies, the entry and field.
+//! file), and something that is there but unusable is never taken for absent (through
+//! `crate::input_file`, shared by every folder reader). Every error names the file and, where it
+//! applies, the entry and field.
 
 use crate::error::{content, IngestError};
 use flate2::read::MultiGzDecoder;
@@ -16,10 +17,7 @@ use std::io::Read;
 use std::marker::PhantomData;
 use std::path::Path;
 
-/// The largest JSON file read whole (poses, timestamps, intrinsics, one frame's cuboids after
-/// decompression): far above a real sequence's (a 80-frame poses.json is 20 KB, a frame's
-/// cuboids 150 KB).
-pub const MAX_JSON_BYTES: u64 = 64 << 20;
+pub use crate::input_file::{open_regular, presence, stat, MAX_JSON_BYTES};
 /// The most frames a sequence may have (PandaSet's are 80; a day at 10 Hz is 864,000).
 pub const MAX_FRAMES: usize = 100_000;
 /// The largest coordinate accepted (m) for a pose, a LiDAR point or a box centre: 10,000 km
@@ -31,65 +29,12 @@ pub const MAX_ABS_TIME_S: f64 = 1e11;
 /// 1e-310 s infinite). Sensors log at 10 Hz; Waymo's clock counts microseconds.
 pub const MIN_TIME_STEP_S: f64 = 1e-6;
 
-/// What `meta` says `path` is, for an error ("a directory", "a FIFO (named pipe)", ...).
-fn kind_of(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    match () {
-        _ if t.is_dir() => "a directory",
-        _ if t.is_fifo() => "a FIFO (named pipe)",
-        _ if t.is_char_device() => "a character device",
-        _ if t.is_block_device() => "a block device",
-        _ if t.is_socket() => "a socket",
-        _ => "not a regular file",
-    }
-}
-
-/// What is at `path`, following symbolic links: `Ok(None)` only when nothing at all is there;
-/// an error, naming `path`, for a symbolic link that loops or leads nowhere or a path that
-/// cannot be looked at (no permission on its folder), so that an input that exists is never
-/// taken for absent.
-pub fn stat(path: &Path) -> Result<Option<std::fs::Metadata>, IngestError> {
-    let io = |e| IngestError::Io { file: path.to_path_buf(), source: e };
-    match std::fs::metadata(path) {
-        Ok(m) => Ok(Some(m)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => match std::fs::symlink_metadata(path) {
-            Ok(_) => {
-                let to = std::fs::read_link(path).map_err(io)?;
-                Err(content(path, format!("is a symbolic link to `{}`, which does not exist", to.display())))
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(io(e)),
-        },
-        Err(e) => Err(io(e)),
-    }
-}
-
-/// Whether the input file `path` is there: `Ok(false)` only when nothing is there ([`stat`]); an
-/// error when something is there that is not a regular file (a directory, FIFO, device),
-/// naming it and what it is.
-pub fn presence(path: &Path) -> Result<bool, IngestError> {
-    match stat(path)? {
-        None => Ok(false),
-        Some(m) if m.is_file() => Ok(true),
-        Some(m) => Err(content(path, format!("is {}; expected a regular file", kind_of(&m)))),
-    }
-}
-
-/// Opens the input file `path` for reading after [`presence`] said it is a regular file.
-pub fn open_regular(path: &Path) -> Result<std::fs::File, IngestError> {
-    let io = |e| IngestError::Io { file: path.to_path_buf(), source: e };
-    if !presence(path)? {
-        return Err(io(std::io::ErrorKind::NotFound.into()));
-    }
-    std::fs::File::open(path).map_err(io)
-}
-
 /// The bytes of `file`, gunzipped when its name ends in `.gz` (every member of a multi-member
 /// file, as `cat a.gz b.gz` makes; bytes after the last member are refused), refused past
 /// [`MAX_JSON_BYTES`].
 pub fn read_bytes(file: &Path) -> Result<Vec<u8>, IngestError> {
-    let f = open_regular(file)?;
+    // A gzip file is no larger than what it holds (to within its headers).
+    let (f, _) = crate::input_file::open_capped(file, MAX_JSON_BYTES, "a PandaSet JSON file")?;
     let gz = file.extension().is_some_and(|e| e == "gz");
     let reader: Box<dyn Read> =
         if gz { Box::new(MultiGzDecoder::new(std::io::BufReader::new(f))) } else { Box::new(f) };
@@ -293,6 +238,8 @@ pub struct IntrinsicsJson {
     pub cy: f64,
 }
 
+/// `file`'s intrinsics, each finite and below 1e6 in size (their plausibility for the image,
+/// whose size is not known yet, is checked with it: [`check_intrinsics`]).
 pub fn read_intrinsics(file: &Path) -> Result<IntrinsicsJson, IngestError> {
     let k: IntrinsicsJson = read_json(file)?;
     for (field, v, positive) in [("fx", k.fx, true), ("fy", k.fy, true), ("cx", k.cx, false), ("cy", k.cy, false)] {
@@ -305,6 +252,18 @@ pub fn read_intrinsics(file: &Path) -> Result<IntrinsicsJson, IngestError> {
         }
     }
     Ok(k)
+}
+
+/// Refuses intrinsics read from `file` that are implausible for a `width` x `height` image
+/// ([`crate::camera_check::check_intrinsics`]), naming the file, the field, its value and the
+/// allowed range.
+pub fn check_intrinsics(file: &Path, k: &IntrinsicsJson, width: u32, height: u32) -> Result<(), IngestError> {
+    let k = scene::Intrinsics { fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy };
+    crate::camera_check::check_intrinsics(&k, width, height).map_err(|(field, m)| IngestError::Field {
+        file: file.into(),
+        field: field.into(),
+        message: format!("{m}, for the {width}x{height} images of this camera"),
+    })
 }
 
 /// Largest LiDAR file accepted (a full 2-sensor PandaSet sweep is about 3 MB as f32 x y z i).

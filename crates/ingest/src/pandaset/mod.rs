@@ -28,7 +28,7 @@
 //! Every check happens before anything is copied; errors name the file and field. Every input
 //! file is checked to be a regular file before it is opened, and one that is there but cannot
 //! be used (a directory, FIFO, device, a symbolic link that loops, no permission) is refused,
-//! never taken for absent (`files::presence`). The submodules: `files` (reading within budgets
+//! never taken for absent (`crate::input_file`, shared with the other folder readers). The submodules: `files` (reading within budgets
 //! and ranges), `ego` (forward axis, LiDAR height), `camera` (camera folders, images, rig),
 //! `lidar` (sweeps), `cuboids` and `cuboid_records` (tracks).
 
@@ -53,9 +53,10 @@ pub const CONVERTER: &str = "tools/pandaset-to-json.py";
 /// Chrysler Pacifica (length, width, height), PandaSet's recording vehicle.
 pub const PACIFICA_SIZE_LWH: [f64; 3] = [5.17, 2.02, 1.78];
 
-/// True when `dir` looks like a PandaSet sequence folder.
+/// True when `dir` looks like a PandaSet sequence folder (something at `lidar/poses.json`: one
+/// that is not a usable file is refused by [`read`], naming it).
 pub fn looks_like(dir: &Path) -> bool {
-    dir.join("camera").is_dir() && dir.join("lidar").join("poses.json").is_file()
+    dir.join("camera").is_dir() && crate::input_file::is_there(&dir.join("lidar").join("poses.json"))
 }
 
 fn has_ext(dir: &Path, suffix: &str) -> bool {
@@ -156,11 +157,7 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
         for (k, src) in c.images.iter().enumerate() {
             let rel = image_rel_path_ext(k, &c.camera.name, "jpg");
             if let Some(root) = staging {
-                let mut from = files::open_regular(src)?;
-                let to = root.join(&rel);
-                let mut out =
-                    std::fs::File::create(&to).map_err(|e| IngestError::Io { file: to.clone(), source: e })?;
-                std::io::copy(&mut from, &mut out).map_err(|e| IngestError::Io { file: src.clone(), source: e })?;
+                crate::input_file::copy_regular(src, &root.join(&rel))?;
             }
             frames[k].images.push(ImageRef { camera: c.camera.name.clone(), path: rel, timestamp_s: Some(c.times[k]) });
             progress.inc(1);

@@ -1,4 +1,5 @@
-//! Hand-made PandaSet-like folders and the checks on them, shared by the PandaSet test files.
+//! Hand-made PandaSet-like folders and the checks on them, shared by the test files, and the
+//! helpers for hostile inputs (FIFOs, links, unreadable folders, a timeout guard).
 #![allow(dead_code)] // each test file uses a part
 
 use indicatif::ProgressBar;
@@ -6,6 +7,7 @@ use ingest::{Expect, IngestError};
 use scene::Scene;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 pub fn run(input: &Path, out: &Path, expect: Expect) -> Result<Scene, IngestError> {
     ingest::ingest(&[input.to_path_buf()], out, expect, false, &ProgressBar::hidden()).map(|mut w| w.remove(0).scene)
@@ -81,4 +83,36 @@ pub fn refused_at(tmp: &Path, src: &Path, what: &[&str]) -> String {
     let left: Vec<_> = std::fs::read_dir(tmp).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name()).collect();
     assert_eq!(left, [std::ffi::OsString::from("seq")], "stray files after: {err}");
     err
+}
+
+pub fn mkfifo(p: &Path) {
+    let _ = std::fs::remove_file(p);
+    let ok = std::process::Command::new("mkfifo").arg(p).status().unwrap().success();
+    assert!(ok, "mkfifo {}", p.display());
+}
+
+pub fn symlink(target: impl AsRef<Path>, link: &Path) {
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link).unwrap();
+}
+
+/// Runs `f` on its own thread and fails the test if it has not returned within `secs` (an
+/// open of a FIFO nobody writes never returns).
+pub fn within<T: Send + 'static>(secs: u64, what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(Duration::from_secs(secs)).unwrap_or_else(|_| panic!("{what}: ingest still blocked after {secs} s"))
+}
+
+/// True when this process can read what `chmod 000` forbids (root): permission tests skip.
+pub fn permissions_ignored(dir: &Path) -> bool {
+    let probe = dir.join("probe");
+    std::fs::create_dir(&probe).unwrap();
+    std::fs::set_permissions(&probe, std::os::unix::fs::PermissionsExt::from_mode(0o000)).unwrap();
+    let ignored = std::fs::read_dir(&probe).is_ok();
+    std::fs::set_permissions(&probe, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    std::fs::remove_dir(&probe).unwrap();
+    ignored
 }
