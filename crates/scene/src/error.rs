@@ -21,6 +21,12 @@ pub enum SceneError {
     NotADirectory { path: PathBuf },
     #[error("{path}: not {what} (no {marker}); --force replaces only our own outputs")]
     NotOurs { path: PathBuf, what: String, marker: String },
+    /// An input path that is not a regular file (after following symbolic links).
+    #[error("{path}: is {kind}; expected a regular file")]
+    NotAFile { path: PathBuf, kind: &'static str },
+    /// An input file over its budget (`crate::input`); `size` says how large it was found.
+    #[error("{path}: {size}, more than the {max} bytes {what} may have")]
+    TooLarge { path: PathBuf, size: String, max: u64, what: &'static str },
 }
 
 impl SceneError {

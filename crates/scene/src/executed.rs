@@ -164,9 +164,10 @@ impl Executed {
     }
 }
 
-/// Loads and validates an executed file.
+/// Loads and validates an executed file (a regular file of at most
+/// [`crate::input::MAX_EXECUTED_BYTES`]).
 pub fn load_executed(path: &std::path::Path) -> Result<Executed, crate::SceneError> {
-    let e: Executed = crate::format::read_json(path)?;
+    let e: Executed = crate::format::read_json_within(path, crate::input::MAX_EXECUTED_BYTES, "an executed file")?;
     e.validate().map_err(|(field, message)| crate::SceneError::Invalid { file: path.to_path_buf(), field, message })?;
     Ok(e)
 }

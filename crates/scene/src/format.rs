@@ -7,9 +7,11 @@
 //! ```
 //!
 //! Loading parses with field paths (`serde_path_to_error`) and then validates the content
-//! (`validate`), so the first bad field is reported by path.
+//! (`validate`), so the first bad field is reported by path. Every file is read through
+//! [`crate::input`]: only a regular file, within the budget of its kind.
 
 use crate::error::SceneError;
+use crate::input::{read_capped, MAX_JSON_BYTES, MAX_LIDAR_BYTES, MAX_SCENE_JSON_BYTES};
 use crate::model::Scene;
 use crate::output::write_file_atomic;
 use crate::validate::validate_scene;
@@ -35,15 +37,18 @@ pub fn lidar_rel_path(frame: usize) -> String {
 }
 
 /// Scene directories at `path`: itself if it holds `scene.json`, else its sub-directories that
-/// do (sorted), e.g. the output of ingesting a file of several WOMD scenarios.
+/// do (sorted), e.g. the output of ingesting a file of several WOMD scenarios. Anything named
+/// `scene.json` counts (a directory, a device, a broken link), so that loading it names the
+/// problem rather than this saying there is no scene.
 pub fn find_scene_dirs(path: &Path) -> Result<Vec<std::path::PathBuf>, SceneError> {
-    if path.join(SCENE_FILE).is_file() {
+    let holds_scene = |d: &Path| std::fs::symlink_metadata(d.join(SCENE_FILE)).is_ok();
+    if holds_scene(path) {
         return Ok(vec![path.to_path_buf()]);
     }
     let mut dirs: Vec<std::path::PathBuf> = std::fs::read_dir(path)
         .map_err(|e| SceneError::io(path, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.join(SCENE_FILE).is_file())
+        .filter(|p| holds_scene(p))
         .collect();
     dirs.sort();
     if dirs.is_empty() {
@@ -56,11 +61,12 @@ pub fn find_scene_dirs(path: &Path) -> Result<Vec<std::path::PathBuf>, SceneErro
     Ok(dirs)
 }
 
-/// Loads and validates `<dir>/scene.json` (and checks that referenced files exist).
+/// Loads and validates `<dir>/scene.json` (and checks that referenced files exist). The file
+/// must be a regular file of at most [`MAX_SCENE_JSON_BYTES`].
 pub fn load_scene(dir: &Path) -> Result<Scene, SceneError> {
     let file = dir.join(SCENE_FILE);
-    let text = std::fs::read_to_string(&file).map_err(|e| SceneError::io(&file, e))?;
-    let scene = parse_scene_json(&file, &text)?;
+    let bytes = read_capped(&file, MAX_SCENE_JSON_BYTES, "a scene.json")?;
+    let scene: Scene = parse_json_slice(&file, &bytes)?;
     validate_scene(&scene, Some(dir)).map_err(|(field, message)| SceneError::Invalid { file, field, message })?;
     Ok(scene)
 }
@@ -72,7 +78,12 @@ pub fn parse_scene_json(file: &Path, text: &str) -> Result<Scene, SceneError> {
 
 /// Parses JSON into `T`, reporting the failing field by path; `file` names it in errors.
 pub fn parse_json<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, SceneError> {
-    let de = &mut serde_json::Deserializer::from_str(text);
+    parse_json_slice(file, text.as_bytes())
+}
+
+/// [`parse_json`] of bytes (invalid UTF-8 is reported where it is).
+pub fn parse_json_slice<T: serde::de::DeserializeOwned>(file: &Path, bytes: &[u8]) -> Result<T, SceneError> {
+    let de = &mut serde_json::Deserializer::from_slice(bytes);
     serde_path_to_error::deserialize(de).map_err(|e| SceneError::Json {
         file: file.to_path_buf(),
         field: e.path().to_string(),
@@ -98,10 +109,20 @@ pub fn write_scene(dir: &Path, scene: &Scene) -> Result<(), SceneError> {
     write_file_atomic(&file, &json)
 }
 
-/// Reads and parses a JSON file (no content validation).
+/// Reads and parses a JSON file (no content validation): a regular file of at most
+/// [`MAX_JSON_BYTES`]; [`read_json_within`] names a smaller budget.
 pub fn read_json<T: serde::de::DeserializeOwned>(file: &Path) -> Result<T, SceneError> {
-    let text = std::fs::read_to_string(file).map_err(|e| SceneError::io(file, e))?;
-    parse_json(file, &text)
+    read_json_within(file, MAX_JSON_BYTES, "a JSON file")
+}
+
+/// Reads and parses a JSON file of at most `max` bytes; `what` names its kind in the error.
+pub fn read_json_within<T: serde::de::DeserializeOwned>(
+    file: &Path,
+    max: u64,
+    what: &'static str,
+) -> Result<T, SceneError> {
+    let bytes = read_capped(file, max, what)?;
+    parse_json_slice(file, &bytes)
 }
 
 /// Writes `value` as pretty JSON through a temporary file and a rename.
@@ -125,9 +146,9 @@ pub fn write_lidar(path: &Path, points: &[[f32; 4]]) -> Result<(), SceneError> {
     write_file_atomic(path, &bytes)
 }
 
-/// Reads a LiDAR sweep; the size must be a multiple of 16 bytes.
+/// Reads a LiDAR sweep: a regular file of at most [`MAX_LIDAR_BYTES`], a multiple of 16 bytes.
 pub fn read_lidar(path: &Path) -> Result<Vec<[f32; 4]>, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    let bytes = read_capped(path, MAX_LIDAR_BYTES, "a LiDAR sweep")?;
     if bytes.len() % 16 != 0 {
         return Err(SceneError::Invalid {
             file: path.to_path_buf(),

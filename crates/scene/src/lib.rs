@@ -8,6 +8,7 @@ pub mod error;
 pub mod executed;
 pub mod format;
 pub mod frames;
+pub mod input;
 pub mod map;
 pub mod mobility;
 pub mod model;

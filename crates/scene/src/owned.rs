@@ -8,9 +8,11 @@ use crate::error::SceneError;
 use crate::output::{file_name, parent_dir};
 use std::path::Path;
 
-/// Whether `dir/file` is a JSON object whose `format` field is `format`.
+/// Whether `dir/file` is a JSON object whose `format` field is `format`: never for anything but
+/// a regular file of at most [`crate::input::MAX_JSON_BYTES`] (a link to `/dev/zero` is not read).
 pub fn has_format_marker(dir: &Path, file: &str, format: &str) -> bool {
-    let Ok(bytes) = std::fs::read(dir.join(file)) else { return false };
+    let read = crate::input::read_capped(&dir.join(file), crate::input::MAX_JSON_BYTES, "a format marker");
+    let Ok(bytes) = read else { return false };
     let Ok(v) = serde_json::from_slice::<serde_json::Value>(&bytes) else { return false };
     v.get("format").and_then(|f| f.as_str()) == Some(format)
 }
@@ -94,6 +96,13 @@ mod tests {
             check_replaceable(&dir, true, "a scene", "scene.json", marked),
             Err(SceneError::NotOurs { .. })
         ));
+        // A marker that is a link to an endless device is not read (it was, until memory ran out).
+        std::os::unix::fs::symlink("/dev/zero", dir.join("scene.json")).unwrap();
+        assert!(matches!(
+            check_replaceable(&dir, true, "a scene", "scene.json", marked),
+            Err(SceneError::NotOurs { .. })
+        ));
+        std::fs::remove_file(dir.join("scene.json")).unwrap();
         std::fs::write(dir.join("scene.json"), br#"{"format": "x/1"}"#).unwrap();
         check_replaceable(&dir, true, "a scene", "scene.json", marked).unwrap();
         check_replaceable(&root.path().join("absent"), false, "a scene", "scene.json", marked).unwrap();

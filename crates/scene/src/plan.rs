@@ -231,9 +231,9 @@ impl Plan {
     }
 }
 
-/// Loads and validates a plan file.
+/// Loads and validates a plan file (a regular file of at most [`crate::input::MAX_PLAN_BYTES`]).
 pub fn load_plan(path: &std::path::Path) -> Result<Plan, crate::SceneError> {
-    let plan: Plan = crate::format::read_json(path)?;
+    let plan: Plan = crate::format::read_json_within(path, crate::input::MAX_PLAN_BYTES, "a plan file")?;
     plan.validate().map_err(|(field, message)| crate::SceneError::Invalid {
         file: path.to_path_buf(),
         field,

@@ -3,6 +3,7 @@
 //! With a directory it also checks that referenced images and LiDAR files exist and fit.
 
 use crate::camera::check_camera_size;
+use crate::input::{kind_of, MAX_LIDAR_POINTS};
 use crate::model::{Scene, SCENE_FORMAT};
 use crate::transform::{Transform3, ORTHONORMAL_TOLERANCE};
 use std::collections::HashSet;
@@ -47,7 +48,8 @@ fn relative_file(dir: Option<&Path>, field: &str, rel: &str, prefix: &str) -> Re
         None => Ok(None),
         Some(d) => match std::fs::metadata(d.join(p)) {
             Ok(m) if m.is_file() => Ok(Some(m.len())),
-            _ => fail(field, format!("file `{rel}` does not exist in the scene directory")),
+            Ok(m) => fail(field, format!("`{rel}` is {}; expected a regular file", kind_of(&m))),
+            Err(_) => fail(field, format!("file `{rel}` does not exist in the scene directory")),
         },
     }
 }
@@ -128,6 +130,12 @@ pub fn validate_scene(scene: &Scene, dir: Option<&Path>) -> Check {
             }
         }
         if let Some(l) = &fr.lidar {
+            if l.points > MAX_LIDAR_POINTS {
+                return fail(
+                    f("lidar.points"),
+                    format!("{} points: more than the {MAX_LIDAR_POINTS} a sweep may have", l.points),
+                );
+            }
             if let Some(len) = relative_file(dir, &f("lidar.path"), &l.path, "lidar/")? {
                 // Checked: a hostile count (2^60 or more) would overflow the product.
                 if (l.points as u64).checked_mul(16) != Some(len) {

@@ -9,17 +9,35 @@
 //! element, a map of property names to values per vertex, took about 5 KB and a few microseconds a
 //! Gaussian, so loading a trained real street (825k Gaussians) cost gigabytes and tens of seconds
 //! in every command that reads a model.
+//!
+//! Reading is bounded (hostile input: a `background.ply` linked to `/dev/zero` aborted the
+//! process allocating 4 GiB for one header line): only a regular file (symbolic links followed)
+//! of at most [`MAX_PLY_BYTES`] is opened; the header is read through a reader that stops after
+//! [`MAX_HEADER_BYTES`]; before any payload is read the elements declared may hold at most
+//! [`MAX_GAUSSIANS`] in all and must fit in the bytes after the header (binary: count x the bytes
+//! of one element; ASCII: at least two bytes a value); and the payload is read through a reader
+//! that stops at the file's size.
 
 use crate::gaussians::Gaussians;
 use crate::sh::sh_coeffs;
-use ply_rs_bw::parser::Parser;
+use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
-    Addable, ElementDef, Encoding, Ply, Property, PropertyAccess, PropertyAccessResult, PropertyDef, PropertyType,
-    ScalarType,
+    Addable, ElementDef, Encoding, Header, Ply, Property, PropertyAccess, PropertyAccessResult, PropertyDef,
+    PropertyType, ScalarType,
 };
 use ply_rs_bw::writer::Writer;
-use std::io::Write;
+use std::io::{BufReader, Read, Write};
 use std::path::Path;
+
+/// The most elements (Gaussians) a PLY file may declare in all: 10,000,000, the number of
+/// Gaussians `recon` allows a set (`recon::budget::MAX_GAUSSIANS`, its checkpoints' budget).
+pub const MAX_GAUSSIANS: usize = 10_000_000;
+/// The longest header read, `ply` to `end_header` (a 3DGS header is about 1.5 KB).
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+/// The largest PLY file read: [`MAX_GAUSSIANS`] vertices of the 62 properties of a degree-3 3DGS
+/// file (position, normal, 48 SH coefficients, opacity, 3 scales, 4 rotation) as doubles, and a
+/// header: 4,961,048,576 bytes (our own files, floats, take half that).
+pub const MAX_PLY_BYTES: u64 = MAX_GAUSSIANS as u64 * 62 * 8 + MAX_HEADER_BYTES;
 
 #[derive(Debug, thiserror::Error)]
 pub enum PlyError {
@@ -135,16 +153,125 @@ impl PropertyAccess for Vertex {
     }
 }
 
-/// Reads a 3DGS PLY file.
+/// What `meta` says a path is, for an error ("a directory", "a FIFO (named pipe)", ...).
+fn kind_of(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    match () {
+        _ if t.is_dir() => "a directory",
+        _ if t.is_fifo() => "a FIFO (named pipe)",
+        _ if t.is_char_device() => "a character device",
+        _ if t.is_block_device() => "a block device",
+        _ if t.is_socket() => "a socket",
+        _ => "not a regular file",
+    }
+}
+
+/// Opens `path` if it is a regular file (symbolic links followed) of at most [`MAX_PLY_BYTES`]:
+/// the file and its size.
+fn open_bounded(path: &Path, file: &str) -> Result<(std::fs::File, u64), PlyError> {
+    let io = |e| PlyError::Io { file: file.to_string(), source: e };
+    let not_regular = |m: &std::fs::Metadata| PlyError::Read {
+        file: file.to_string(),
+        message: format!("is {}; expected a regular file", kind_of(m)),
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_regular(&meta));
+    }
+    let f = std::fs::File::open(path).map_err(io)?;
+    let meta = f.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_regular(&meta));
+    }
+    if meta.len() > MAX_PLY_BYTES {
+        return Err(PlyError::Read {
+            file: file.to_string(),
+            message: format!(
+                "{} bytes, more than the {MAX_PLY_BYTES} a PLY file may have ({MAX_GAUSSIANS} Gaussians of 62 doubles and a header)",
+                meta.len()
+            ),
+        });
+    }
+    Ok((f, meta.len()))
+}
+
+/// Fewest bytes one element of `def` takes in the payload: binary, its scalars (a list at least
+/// its length); ASCII, a character and a separator a property (an empty line without any).
+fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u64 {
+    let size = |t: &ScalarType| match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    };
+    match encoding {
+        Encoding::Ascii => (2 * def.properties.len() as u64).max(1),
+        _ => def
+            .properties
+            .values()
+            .map(|p| match &p.data_type {
+                PropertyType::Scalar(t) | PropertyType::List(t, _) => size(t),
+            })
+            .sum(),
+    }
+}
+
+/// Checks the elements `header` declares against [`MAX_GAUSSIANS`] and the `payload` bytes the
+/// file has after its header, before any is read.
+fn check_counts(header: &Header, payload: u64) -> Result<(), String> {
+    let (mut total, mut need) = (0usize, 0u128);
+    for (name, def) in &header.elements {
+        total = total.saturating_add(def.count);
+        if total > MAX_GAUSSIANS {
+            return Err(format!(
+                "`element {name} {}`: more than the {MAX_GAUSSIANS} elements (Gaussians) a PLY file may have",
+                def.count
+            ));
+        }
+        let bytes = min_element_bytes(def, header.encoding);
+        if bytes == 0 && def.count > 0 {
+            return Err(format!("`element {name} {}` has no properties", def.count));
+        }
+        need += def.count as u128 * bytes as u128;
+        if need > payload as u128 {
+            return Err(format!(
+                "`element {name} {}` needs at least {} bytes ({bytes} an element), more than the {payload} after the header",
+                def.count,
+                def.count as u128 * bytes as u128
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Reads a 3DGS PLY file within the budgets above.
 pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
     let file = path.display().to_string();
-    let f = std::fs::File::open(path).map_err(|e| PlyError::Io { file: file.clone(), source: e })?;
-    let mut reader = std::io::BufReader::new(f);
-    let ply = Parser::<Vertex>::new()
-        .read_ply(&mut reader)
-        .map_err(|e| PlyError::Read { file: file.clone(), message: format!("not a readable PLY file: {e}") })?;
-    let def = ply
-        .header
+    let (f, len) = open_bounded(path, &file)?;
+    let unreadable = |e: &dyn std::fmt::Display| PlyError::Read {
+        file: file.clone(),
+        message: format!("not a readable PLY file: {e}"),
+    };
+    let mut reader = Reader::new(BufReader::new(f.take(MAX_HEADER_BYTES)));
+    let parser = Parser::<Vertex>::new();
+    let header = match parser.read_header(&mut reader) {
+        Ok(h) => h,
+        Err(_) if reader.get_ref().get_ref().limit() == 0 => {
+            return Err(PlyError::Read {
+                file,
+                message: format!("not a readable PLY file: no `end_header` within its first {MAX_HEADER_BYTES} bytes"),
+            })
+        }
+        Err(e) => return Err(unreadable(&e)),
+    };
+    // Bytes after the header: the file's less what was taken from it and not used yet.
+    let taken = MAX_HEADER_BYTES - reader.get_ref().get_ref().limit();
+    let header_len = taken - reader.get_ref().buffer().len() as u64;
+    check_counts(&header, len.saturating_sub(header_len))
+        .map_err(|message| PlyError::Read { file: file.clone(), message })?;
+    reader.get_mut().get_mut().set_limit(len.saturating_sub(taken));
+    let def = header
         .elements
         .get("vertex")
         .ok_or_else(|| PlyError::Read { file: file.clone(), message: "no `vertex` element".into() })?;
@@ -170,7 +297,8 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
             });
         }
     }
-    let verts = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or_default();
+    let payload = parser.read_payload(&mut reader, &header).map_err(|e| unreadable(&e))?;
+    let verts = payload.get("vertex").map(Vec::as_slice).unwrap_or_default();
     let mut g = Gaussians {
         means: Vec::with_capacity(verts.len()),
         log_scales: Vec::with_capacity(verts.len()),

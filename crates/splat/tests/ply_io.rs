@@ -100,3 +100,77 @@ property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float
     let e = read_ply(&p).unwrap_err().to_string();
     assert!(e.contains("v.ply") && e.contains("opacity"), "{e}");
 }
+
+/// The 3DGS degree-0 header, binary little-endian, with `count` vertices.
+fn binary_header(count: &str) -> String {
+    let props: String = [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1",
+        "rot_2", "rot_3",
+    ]
+    .iter()
+    .map(|p| format!("property float {p}\n"))
+    .collect();
+    format!("ply\nformat binary_little_endian 1.0\nelement vertex {count}\n{props}end_header\n")
+}
+
+#[test]
+fn a_file_linked_to_an_endless_device_or_not_a_file_is_refused() {
+    // Fuzz finding: background.ply -> /dev/zero aborted the process (a 4 GiB header line).
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("background.ply");
+    std::os::unix::fs::symlink("/dev/zero", &p).unwrap();
+    let start = std::time::Instant::now();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("background.ply: is a character device; expected a regular file"), "{e}");
+    assert!(start.elapsed() < std::time::Duration::from_secs(5));
+    let e = read_ply(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("is a directory; expected a regular file"), "{e}");
+    // Larger than the budget (a sparse file, no disk used): refused before reading.
+    let big = dir.path().join("big.ply");
+    std::fs::File::create(&big).unwrap().set_len(splat::ply::MAX_PLY_BYTES + 1).unwrap();
+    let e = read_ply(&big).unwrap_err().to_string();
+    assert!(e.contains("4961048577 bytes, more than the 4961048576 a PLY file may have"), "{e}");
+}
+
+#[test]
+fn a_header_line_without_end_is_cut_at_the_header_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("long.ply");
+    let mut text = b"ply\nformat binary_little_endian 1.0\ncomment ".to_vec();
+    text.resize(text.len() + 2 * splat::ply::MAX_HEADER_BYTES as usize, b'x');
+    std::fs::write(&p, &text).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("long.ply: not a readable PLY file: no `end_header` within its first 1048576 bytes"), "{e}");
+}
+
+#[test]
+fn declared_counts_must_fit_the_budget_and_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("c.ply");
+    let vertex = [0f32, 0., 0., 0., 0., 0., 0., 0., 0., 0., 1., 0., 0., 0.];
+    let bytes: Vec<u8> = vertex.iter().flat_map(|v| v.to_le_bytes()).collect();
+    // One vertex declared and present: read.
+    std::fs::write(&p, [binary_header("1").as_bytes(), &bytes].concat()).unwrap();
+    assert_eq!(read_ply(&p).unwrap().len(), 1);
+    // Ten million declared, one present: refused before reading, naming the sizes.
+    std::fs::write(&p, [binary_header("10000000").as_bytes(), &bytes].concat()).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("`element vertex 10000000` needs at least 560000000 bytes (56 an element), more than the 56 after the header"),
+        "{e}"
+    );
+    // More than the Gaussian budget.
+    std::fs::write(&p, [binary_header("10000001").as_bytes(), &bytes].concat()).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("`element vertex 10000001`: more than the 10000000 elements"), "{e}");
+    // ASCII: at least two bytes a value.
+    let ascii = binary_header("3").replace("binary_little_endian", "ascii");
+    std::fs::write(&p, ascii + "0 0 0 0 0 0 0 0 0 0 1 0 0 0\n").unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("`element vertex 3` needs at least 84 bytes (28 an element), more than the 28"), "{e}");
+    // An element of no properties takes no bytes: refused, however many.
+    let empty = binary_header("1").replace("end_header", "element nothing 1000000\nend_header");
+    std::fs::write(&p, [empty.as_bytes(), &bytes].concat()).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(e.contains("`element nothing 1000000` has no properties"), "{e}");
+}
