@@ -193,7 +193,7 @@ fn training_settings_outside_their_ranges_are_refused() {
         ("sky_res = 100000", "`sky_res` must be in 1..=512, got 100000"),
         ("[lr]\nmeans = nan", "`lr.means` must be a finite number in [0, 1], got NaN"),
         ("[lr]\nopacity = inf", "`lr.opacity` must be a finite number in [0, 1], got inf"),
-        ("[loss]\nssim = -5", "`loss.ssim` must be a finite number in [0, 100], got -5"),
+        ("[loss]\nssim = -5", "`loss.ssim` must be a finite number in [0, 1], got -5"),
         ("[densify]\nmax_gaussians = 4000000000", "`densify.max_gaussians`"),
     ] {
         std::fs::write(&cfg, text).unwrap();

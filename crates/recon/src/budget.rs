@@ -17,6 +17,12 @@ pub const MAX_LEARNING_RATE: f64 = 1.0;
 /// Largest loss weight (the paper's are 0.1 to 1).
 pub const MAX_LOSS_WEIGHT: f64 = 100.0;
 
+/// Largest `densify.actor_sigma` (the box rule's ellipsoid, in standard deviations).
+pub const MAX_ACTOR_SIGMA: f64 = 100.0;
+/// The shortest side (pixels) `scale` may shrink a view to: a camera image whose side is already
+/// shorter is kept at full size (`scale` must then be 1 for it).
+pub const MIN_VIEW_SIDE: u32 = 8;
+
 /// A finite number in `[lo, hi]`, named `key` in the error.
 pub fn within(key: &str, value: f64, lo: f64, hi: f64) -> Result<(), String> {
     if value.is_finite() && value >= lo && value <= hi {
@@ -50,13 +56,9 @@ pub fn rates_and_weights(cfg: &crate::TrainConfig) -> Result<(), String> {
         within(key, v, 0.0, MAX_LEARNING_RATE)?;
     }
     let w = &cfg.loss;
-    for (key, v) in [
-        ("loss.ssim", w.ssim),
-        ("loss.depth", w.depth),
-        ("loss.flat", w.flat),
-        ("loss.normal", w.normal),
-        ("loss.geo", w.geo),
-    ] {
+    // `loss.ssim` mixes the colour terms, `(1 - ssim) L1 + ssim D-SSIM`: a fraction.
+    within("loss.ssim", w.ssim, 0.0, 1.0)?;
+    for (key, v) in [("loss.depth", w.depth), ("loss.flat", w.flat), ("loss.normal", w.normal), ("loss.geo", w.geo)] {
         within(key, v, 0.0, MAX_LOSS_WEIGHT)?;
     }
     Ok(())
@@ -78,6 +80,8 @@ pub fn sizes(cfg: &crate::TrainConfig) -> Result<(), String> {
     within("densify.prune_opacity", d.prune_opacity, 0.0, 1.0)?;
     within("densify.max_screen_size", d.max_screen_size, 0.0, f64::MAX)?;
     within("densify.max_world_fraction", d.max_world_fraction, 0.0, f64::MAX)?;
+    // 0: only an actor Gaussian's centre must stay in its box.
+    within("densify.actor_sigma", d.actor_sigma, 0.0, MAX_ACTOR_SIGMA)?;
     within("init.voxel_m", i.voxel_m, 1e-6, 1e6)?;
     within("init.opacity", i.opacity, 1e-6, 1.0 - 1e-6)?;
     Ok(())

@@ -23,6 +23,29 @@ pub fn scaled_size(width: u32, height: u32, scale: f64) -> (u32, u32) {
     (((width as f64 * scale).round() as u32).max(1), ((height as f64 * scale).round() as u32).max(1))
 }
 
+/// Refuses a training `scale` that shrinks a camera's view below [`crate::budget::MIN_VIEW_SIDE`]
+/// pixels on a side (a side already shorter must stay at full size), naming the camera.
+pub fn check_scale(cameras: &[scene::Camera], scale: f64) -> Result<(), ReconError> {
+    let min = crate::budget::MIN_VIEW_SIDE;
+    for cam in cameras {
+        let (w, h) = scaled_size(cam.width, cam.height, scale);
+        if w < min.min(cam.width) || h < min.min(cam.height) {
+            let least = min as f64 / cam.width.min(cam.height).max(1) as f64;
+            return Err(ReconError::Camera {
+                camera: cam.name.clone(),
+                detail: format!(
+                    "scale {scale:e} makes its {}x{} images {w}x{h} pixels: a view must keep at least {min} \
+                     pixels on a side (scale >= {least:.4} for this camera, whose shorter side is {} pixels)",
+                    cam.width,
+                    cam.height,
+                    cam.width.min(cam.height)
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// The rasterizer camera of `cam` on an ego at `world_from_ego`, at `scale` of the image size.
 /// Refuses a distorted camera (undistort at ingest: the rasterizer is pinhole).
 pub fn splat_camera(cam: &scene::Camera, world_from_ego: &Transform3, scale: f64) -> Result<splat::Camera, ReconError> {
@@ -95,5 +118,27 @@ mod tests {
         let ray = pixel_ray(&sc, u.floor() as usize, v.floor() as usize);
         let to = (p_world - DVec3::from(sc.center())).normalize();
         assert!(ray[0] * to.x + ray[1] * to.y + ray[2] * to.z > 0.9999);
+    }
+
+    #[test]
+    fn a_scale_that_shrinks_a_view_below_eight_pixels_is_refused_naming_the_camera() {
+        let cam = |name: &str, width, height| scene::Camera {
+            name: name.into(),
+            width,
+            height,
+            intrinsics: scene::Intrinsics { fx: 50.0, fy: 50.0, cx: 32.0, cy: 24.0 },
+            distortion: Default::default(),
+            ego_from_camera: Transform3::IDENTITY,
+            rolling_shutter: Default::default(),
+        };
+        let cams = [cam("FRONT", 64, 48), cam("SIDE", 96, 64)];
+        assert!(check_scale(&cams, 0.5).is_ok());
+        assert!(check_scale(&cams, 8.0 / 48.0).is_ok());
+        let e = check_scale(&cams, 1e-300).unwrap_err().to_string();
+        assert!(e.starts_with("camera FRONT: scale 1e-300 makes its 64x48 images 1x1 pixels"), "{e}");
+        assert!(check_scale(&cams, 0.1).unwrap_err().to_string().contains("camera FRONT"));
+        // A camera already smaller than 8 pixels trains at full size only.
+        assert!(check_scale(&[cam("TINY", 6, 4)], 1.0).is_ok());
+        assert!(check_scale(&[cam("TINY", 6, 4)], 0.5).is_err());
     }
 }

@@ -177,6 +177,18 @@ fn values_per_gaussian(sh_degree: usize) -> usize {
     3 * params + 3
 }
 
+/// Largest header (JSON) a checkpoint may have.
+const MAX_HEADER_BYTES: u64 = 1 << 28;
+
+/// The largest checkpoint file: magic, header length and header, [`crate::budget::MAX_GAUSSIANS`]
+/// Gaussians of degree 3 with their moments and statistics, the largest sky with its moments, the
+/// checksum. A larger file (or one that is not a regular file: `/dev/zero`) is refused unread.
+pub fn max_bytes() -> u64 {
+    use crate::budget::{MAX_GAUSSIANS, MAX_SKY_RES};
+    let values = MAX_GAUSSIANS * values_per_gaussian(3) + 3 * 6 * 3 * MAX_SKY_RES * MAX_SKY_RES;
+    16 + MAX_HEADER_BYTES + 8 * values as u64 + 4
+}
+
 /// Checks every size in the header against the budget and the payload's length (in f64 values)
 /// before anything is allocated.
 fn check_sizes(h: &Header, payload_values: usize) -> Result<(), String> {
@@ -249,8 +261,20 @@ pub fn has_magic(head: &[u8; 8]) -> bool {
 
 /// Loads a checkpoint and the run it names (`None` for one written before runs were named).
 pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconError> {
-    let bytes = std::fs::read(path).map_err(crate::error::io(path))?;
     let bad = |detail: &str| ReconError::Checkpoint { file: path.to_path_buf(), detail: detail.to_string() };
+    let meta = std::fs::metadata(path).map_err(crate::error::io(path))?;
+    if !meta.is_file() {
+        return Err(bad("not a regular file"));
+    }
+    if meta.len() > max_bytes() {
+        return Err(bad(&format!(
+            "{} bytes, more than the {} a checkpoint of at most {} Gaussians takes",
+            meta.len(),
+            max_bytes(),
+            crate::budget::MAX_GAUSSIANS
+        )));
+    }
+    let bytes = std::fs::read(path).map_err(crate::error::io(path))?;
     if bytes.len() < 20 || &bytes[..8] != MAGIC {
         return Err(bad("not a carla-gs checkpoint (bad magic or too short)"));
     }

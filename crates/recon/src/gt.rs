@@ -29,10 +29,20 @@ pub struct GroundTruth {
     pub track_ids: Vec<String>,
 }
 
-fn gunzip(path: &Path) -> Result<Vec<u8>, ReconError> {
+/// The gzip file at `path` inflated, refused unless it is a regular file inflating to exactly
+/// `expected` bytes (at most `expected + 1` are inflated: a gzip bomb is refused, not followed).
+fn gunzip(path: &Path, expected: usize) -> Result<Vec<u8>, ReconError> {
+    let bad = |detail: String| ReconError::Format { file: path.to_path_buf(), detail };
+    if !std::fs::metadata(path).map_err(crate::error::io(path))?.is_file() {
+        return Err(bad("is not a regular file".into()));
+    }
     let f = std::fs::File::open(path).map_err(crate::error::io(path))?;
     let mut out = Vec::new();
-    flate2::read::GzDecoder::new(f).read_to_end(&mut out).map_err(crate::error::io(path))?;
+    flate2::read::GzDecoder::new(f).take(expected as u64 + 1).read_to_end(&mut out).map_err(crate::error::io(path))?;
+    if out.len() != expected {
+        let got = if out.len() > expected { format!("more than {expected}") } else { out.len().to_string() };
+        return Err(bad(format!("{got} bytes, expected {expected}")));
+    }
     Ok(out)
 }
 
@@ -66,24 +76,12 @@ pub fn load(
     let (sw, sh) = (camera.width as usize, camera.height as usize);
     let stem = format!("{frame:06}_{}", camera.name);
     let npath = gt.join(format!("{stem}.normal_cam.f32.gz"));
-    let nb = gunzip(&npath)?;
-    if nb.len() != sw * sh * 12 {
-        return Err(ReconError::Format {
-            file: npath,
-            detail: format!("{} bytes, expected {}", nb.len(), sw * sh * 12),
-        });
-    }
+    let nb = gunzip(&npath, sw * sh * 12)?;
     let f: Vec<f32> = nb.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
     let normals: Vec<[f64; 3]> =
         f.chunks_exact(3).map(|n| crate::camera::cv_normal_from_waymo([n[0], n[1], n[2]])).collect();
     let ipath = gt.join(format!("{stem}.instance.u16.gz"));
-    let ib = gunzip(&ipath)?;
-    if ib.len() != sw * sh * 2 {
-        return Err(ReconError::Format {
-            file: ipath,
-            detail: format!("{} bytes, expected {}", ib.len(), sw * sh * 2),
-        });
-    }
+    let ib = gunzip(&ipath, sw * sh * 2)?;
     let inst: Vec<u16> = ib.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
     let track_ids: Vec<String> = index.instances.iter().map(|i| i.track_id.clone()).collect();
     let track: Vec<Option<usize>> = inst

@@ -87,7 +87,13 @@ fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View]) -> Opti
 
 /// Gaussians at `points` with colours and 3-NN scales: isotropic with identity rotations, or, where
 /// `cfg.surface_neighbours > 0` and the neighbourhood is planar, thin discs in the local surface.
+///
+/// Points that are not finite, and exact repeats of an earlier point, are left out first (a k-d
+/// tree leaf cannot hold more identical points than its bucket size: a zero-size box's random
+/// points all sit at its centre); a set without either is used as it is.
 pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, cfg: &InitConfig) -> Gaussians {
+    let distinct = distinct_points(points);
+    let points: &[(DVec3, [f64; 3])] = distinct.as_deref().unwrap_or(points);
     let mut g = Gaussians::empty(degree);
     let mut tree: KdTree<f64, 3> = KdTree::new();
     for (i, (p, _)) in points.iter().enumerate() {
@@ -130,6 +136,40 @@ pub fn gaussians_at(points: &[(DVec3, [f64; 3])], degree: usize, cfg: &InitConfi
     g
 }
 
+/// `points` without non-finite points and exact repeats (the first of each kept, in order), or
+/// `None` when it has neither. `0.0` and `-0.0` are the same point (they compare equal).
+fn distinct_points(points: &[(DVec3, [f64; 3])]) -> Option<Vec<(DVec3, [f64; 3])>> {
+    let key = |p: &DVec3| p.to_array().map(|c| (c + 0.0).to_bits());
+    let mut seen = std::collections::HashSet::with_capacity(points.len());
+    let keep: Vec<bool> = points.iter().map(|(p, _)| p.is_finite() && seen.insert(key(p))).collect();
+    keep.contains(&false).then(|| points.iter().zip(&keep).filter(|(_, k)| **k).map(|(p, _)| *p).collect())
+}
+
+/// Whether a box size can hold points: every side finite and positive.
+pub fn box_holds_points(size_lwh: [f64; 3]) -> bool {
+    size_lwh.iter().all(|s| s.is_finite() && *s > 0.0)
+}
+
+/// The corners of the box random background points are drawn in (the cameras' bounds, padded),
+/// or an error when a side is empty or not finite (camera poses too far out for f64 to sample).
+fn random_bounds(views: &[View]) -> Result<(DVec3, DVec3), ReconError> {
+    let centres: Vec<DVec3> = views.iter().map(|v| DVec3::from(v.cam.center())).collect();
+    let (lo, hi) = centres.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
+    let pad = DVec3::splat(0.1 * (hi - lo).length().max(1.0));
+    let (lo, hi) = (lo - pad, hi + pad);
+    for (axis, l, h) in [("x", lo.x, hi.x), ("y", lo.y, hi.y), ("z", lo.z, hi.z)] {
+        if !(l.is_finite() && h.is_finite() && l < h) {
+            return Err(ReconError::Input(format!(
+                "the scene has neither LiDAR nor depth priors, and the cameras' bounds along {axis} \
+                 ({l:e} to {h:e} m, padded) give no range to place random starting points in: camera \
+                 poses (`world_from_ego`, the cameras' extrinsics) must be finite and within f64's \
+                 precision of one another"
+            )));
+        }
+    }
+    Ok((lo, hi))
+}
+
 fn thin(points: Vec<(DVec3, [f64; 3])>, voxel: f64, cap: usize, rng: &mut ChaCha8Rng) -> Vec<(DVec3, [f64; 3])> {
     let mut seen: HashMap<[i64; 3], ()> = HashMap::new();
     let mut out: Vec<_> = points
@@ -146,6 +186,16 @@ fn thin(points: Vec<(DVec3, [f64; 3])>, voxel: f64, cap: usize, rng: &mut ChaCha
     out
 }
 
+/// The tracks that get an actor model: vehicles, cyclists and pedestrians with a valid state.
+pub fn actor_tracks(scene: &Scene) -> Vec<&scene::Track> {
+    scene
+        .tracks
+        .iter()
+        .filter(|t| matches!(t.class, ObjectClass::Vehicle | ObjectClass::Cyclist | ObjectClass::Pedestrian))
+        .filter(|t| t.valid_states().next().is_some())
+        .collect()
+}
+
 /// Builds the starting model.
 pub fn initialise(
     scene_dir: &Path,
@@ -157,12 +207,7 @@ pub fn initialise(
     seed: u64,
 ) -> Result<(SceneModel, InitReport), ReconError> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1a17);
-    let tracks: Vec<&scene::Track> = scene
-        .tracks
-        .iter()
-        .filter(|t| matches!(t.class, ObjectClass::Vehicle | ObjectClass::Cyclist | ObjectClass::Pedestrian))
-        .filter(|t| t.valid_states().next().is_some())
-        .collect();
+    let tracks = actor_tracks(scene);
     let mut bg_points = Vec::new();
     let mut actor_points: Vec<Vec<(DVec3, [f64; 3])>> = vec![Vec::new(); tracks.len()];
     let mut source = "random";
@@ -171,7 +216,8 @@ pub fn initialise(
         let poses: Vec<_> = tracks
             .iter()
             .map(|t| {
-                let size = t.state_at(f.index).filter(|s| s.valid).map(|s| s.size_lwh);
+                // A degenerate box (a side zero or not finite) holds no points.
+                let size = t.state_at(f.index).filter(|s| s.valid && box_holds_points(s.size_lwh)).map(|s| s.size_lwh);
                 box_pose_at(scene, t, f.timestamp_s).zip(size).map(|(p, s)| (p.world_from_box().inverse(), s))
             })
             .collect();
@@ -236,10 +282,7 @@ pub fn initialise(
     }
     if bg_points.is_empty() {
         source = "random";
-        let centres: Vec<DVec3> = views.iter().map(|v| DVec3::from(v.cam.center())).collect();
-        let (lo, hi) = centres.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), c| (lo.min(*c), hi.max(*c)));
-        let pad = DVec3::splat(0.1 * (hi - lo).length().max(1.0));
-        let (lo, hi) = (lo - pad, hi + pad);
+        let (lo, hi) = random_bounds(views)?;
         for _ in 0..cfg.random_points {
             let p =
                 DVec3::new(rng.random_range(lo.x..hi.x), rng.random_range(lo.y..hi.y), rng.random_range(lo.z..hi.z));
@@ -258,6 +301,16 @@ pub fn initialise(
     };
     for (t, pts) in tracks.iter().zip(actor_points) {
         let size = t.median_size_lwh();
+        if !box_holds_points(size) {
+            tracing::warn!(
+                track = %t.id,
+                size_lwh = ?size,
+                "the track's median box size has a side that is zero or not finite: its actor starts with no Gaussians"
+            );
+            report.actors.push((t.id.clone(), 0, 0));
+            actors.push(Actor { track_id: t.id.clone(), size_lwh: size, gaussians: Gaussians::empty(sh_degree) });
+            continue;
+        }
         let mut pts = thin(pts, cfg.voxel_m / 3.0, cfg.actor_points, &mut rng);
         let from_lidar = pts.len();
         let want = (cfg.actor_points / 4).max(50);

@@ -47,7 +47,8 @@ pub fn pixels_at(scene: &Scene, scale: f64, keep: &dyn Fn(usize) -> bool) -> (u6
 }
 
 /// The bytes this process may use: `CARLA_GS_HOST_MEMORY` if set, else `MemAvailable` lowered to
-/// what its cgroups leave ([`cgroup_remaining`]); `None` where neither is known (then nothing is
+/// what its cgroups leave ([`cgroup_remaining`]) and to what its address-space limit leaves
+/// ([`address_space_left`]); `None` where neither is known (then nothing is
 /// refused).
 pub fn available_bytes() -> Result<Option<u64>, ReconError> {
     if let Some(v) = std::env::var_os(BUDGET_ENV) {
@@ -61,10 +62,19 @@ pub fn available_bytes() -> Result<Option<u64>, ReconError> {
     let cgroup = std::fs::read_to_string("/proc/self/cgroup")
         .ok()
         .and_then(|c| cgroup_remaining(std::path::Path::new("/sys/fs/cgroup"), &c));
-    Ok(match (available, cgroup) {
-        (Some(a), Some(c)) => Some(a.min(c)),
-        (a, c) => a.or(c),
-    })
+    let limits = std::fs::read_to_string("/proc/self/limits").ok();
+    let status = std::fs::read_to_string("/proc/self/status").ok();
+    let space = limits.as_deref().zip(status.as_deref()).and_then(|(l, s)| address_space_left(l, s));
+    Ok([available, cgroup, space].into_iter().flatten().min())
+}
+
+/// What the soft address-space limit (`ulimit -v`, "Max address space" of `/proc/self/limits`)
+/// leaves above the process's current size (`VmSize` of `/proc/self/status`); `None` when unlimited.
+pub fn address_space_left(limits: &str, status: &str) -> Option<u64> {
+    let line = limits.lines().find(|l| l.starts_with("Max address space"))?;
+    let limit: u64 = line["Max address space".len()..].split_whitespace().next()?.parse().ok()?;
+    let size = meminfo_field(status, "VmSize:").unwrap_or(0);
+    Some(limit.saturating_sub(size))
 }
 
 /// Bytes in KiB, MiB or GiB, one decimal.
@@ -183,6 +193,54 @@ pub fn check_views(
     )))
 }
 
+/// Bytes one Gaussian of degree `sh_degree` takes while training: its parameters, their Adam
+/// moments and gradient, its copy in the composed world and its density statistics.
+pub fn bytes_per_gaussian(sh_degree: usize) -> u64 {
+    let params = (3 + 3 + 4 + 1 + splat::sh::sh_coeffs(sh_degree) * 3) as u64;
+    (5 * params + 3) * std::mem::size_of::<f64>() as u64
+}
+
+/// The most Gaussians a run of `cfg` on a scene with `actor_tracks` tracked objects can hold: the
+/// start (at most `init.max_points` background points and `max(init.actor_points, 50)` per
+/// actor) or `densify.max_gaussians`, whichever is larger.
+pub fn most_gaussians(cfg: &crate::TrainConfig, actor_tracks: usize) -> u64 {
+    let per_actor = cfg.init.actor_points.max(50) as u64;
+    let start = (cfg.init.max_points as u64).saturating_add(per_actor.saturating_mul(actor_tracks as u64));
+    start.max(cfg.densify.max_gaussians as u64)
+}
+
+/// Refuses a config whose Gaussians ([`most_gaussians`]), with the views' targets (`targets`
+/// bytes), would not fit `available`, before anything is allocated: the error gives the numbers
+/// and the keys to lower. `None`: nothing is known, nothing refused.
+pub fn check_model(
+    cfg: &crate::TrainConfig,
+    actor_tracks: usize,
+    targets: u64,
+    available: Option<u64>,
+) -> Result<(), ReconError> {
+    let Some(available) = available else { return Ok(()) };
+    let most = most_gaussians(cfg, actor_tracks);
+    let each = bytes_per_gaussian(cfg.sh_degree);
+    let need = most.saturating_mul(each);
+    if need.saturating_add(targets) <= available {
+        return Ok(());
+    }
+    Err(ReconError::Memory(format!(
+        "the settings allow up to {most} Gaussians (densify.max_gaussians = {}; the start, init.max_points = \
+         {} and {actor_tracks} actors of up to max(init.actor_points = {}, 50)), which take {} while \
+         training ({each} bytes each at sh_degree {}), besides {} for the views' targets; {} is \
+         available ({BUDGET_ENV} sets the budget): lower densify.max_gaussians, init.max_points or \
+         init.actor_points",
+        cfg.densify.max_gaussians,
+        cfg.init.max_points,
+        cfg.init.actor_points,
+        human(need),
+        cfg.sh_degree,
+        human(targets),
+        human(available),
+    )))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,5 +310,35 @@ mod tests {
         let m = "MemTotal:       24000000 kB\nMemFree:  100 kB\nMemAvailable:   22000000 kB\n";
         assert_eq!(meminfo_field(m, "MemAvailable:"), Some(22_000_000 * 1024));
         assert_eq!(meminfo_field(m, "SwapTotal:"), None);
+    }
+
+    #[test]
+    fn gaussians_past_the_memory_budget_are_refused_with_the_numbers() {
+        let cfg = crate::TrainConfig::default();
+        // 200k Gaussians of degree 3 at 2,384 bytes: 455 MiB.
+        assert_eq!(bytes_per_gaussian(3), 2384);
+        assert_eq!(most_gaussians(&cfg, 2), 200_000);
+        assert!(check_model(&cfg, 2, 1 << 20, Some(1 << 30)).is_ok());
+        assert!(check_model(&cfg, 2, 1 << 20, None).is_ok());
+        let mut big = cfg.clone();
+        big.densify.max_gaussians = 10_000_000;
+        let e = check_model(&big, 2, 1 << 20, Some(8 << 30)).unwrap_err().to_string();
+        assert!(e.contains("up to 10000000 Gaussians") && e.contains("22.2 GiB") && e.contains("8.0 GiB"), "{e}");
+        let mut init = cfg;
+        init.init.max_points = 10_000_000;
+        init.init.actor_points = 10_000_000;
+        assert_eq!(most_gaussians(&init, 9), 100_000_000);
+        let e = check_model(&init, 9, 0, Some(8 << 30)).unwrap_err().to_string();
+        assert!(e.contains("init.max_points = 10000000") && e.contains("9 actors"), "{e}");
+    }
+
+    #[test]
+    fn the_address_space_limit_lowers_what_is_available() {
+        let limits = "Limit                     Soft Limit           Hard Limit           Units     \n\
+                      Max address space         4096000000           unlimited            bytes     \n";
+        let status = "Name:\tcarla-gs\nVmSize:\t   96000 kB\n";
+        assert_eq!(address_space_left(limits, status), Some(4_096_000_000 - 96_000 * 1024));
+        let unlimited = "Max address space         unlimited            unlimited            bytes     \n";
+        assert_eq!(address_space_left(unlimited, status), None);
     }
 }

@@ -141,17 +141,37 @@ pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
         let g = splat::ply::read_ply(&p).map_err(ply_err(&p))?;
         actors.push(Actor { track_id: a.track_id.clone(), size_lwh: a.size_lwh, gaussians: g });
     }
-    let sky_path = dir.join("sky.f32");
-    let bytes = std::fs::read(&sky_path).map_err(crate::error::io(&sky_path))?;
-    let want = 6 * record.sky_res * record.sky_res * 3;
-    if bytes.len() != want * 4 {
-        return Err(ReconError::Format {
-            file: sky_path,
-            detail: format!("{} bytes, expected {}", bytes.len(), want * 4),
-        });
-    }
-    let texels = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect();
+    let texels = read_sky(&dir.join("sky.f32"), record.sky_res)?;
     Ok((SceneModel { background, actors, sky: Sky { res: record.sky_res, texels } }, record))
+}
+
+/// The sky texels of `sky.f32` at face resolution `res`: a regular file of exactly `6 x res x res x
+/// 3` little-endian f32 values, every one finite (the error names the file and the texel).
+pub fn read_sky(sky_path: &Path, res: usize) -> Result<Vec<f64>, ReconError> {
+    let bad = |detail: String| ReconError::Format { file: sky_path.to_path_buf(), detail };
+    if res > crate::budget::MAX_SKY_RES {
+        return Err(bad(format!("sky_res {res} in model.json, at most {}", crate::budget::MAX_SKY_RES)));
+    }
+    let want = 6 * res * res * 3;
+    let meta = std::fs::metadata(sky_path).map_err(crate::error::io(sky_path))?;
+    if !meta.is_file() || meta.len() != want as u64 * 4 {
+        let what = if meta.is_file() { format!("{} bytes", meta.len()) } else { "not a regular file".into() };
+        return Err(bad(format!("{what}, expected a file of {} bytes (sky_res {res})", want * 4)));
+    }
+    let bytes = std::fs::read(sky_path).map_err(crate::error::io(sky_path))?;
+    if bytes.len() != want * 4 {
+        return Err(bad(format!("{} bytes, expected {}", bytes.len(), want * 4)));
+    }
+    let texels: Vec<f64> = bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect();
+    if let Some(i) = texels.iter().position(|v| !v.is_finite()) {
+        return Err(bad(format!(
+            "value {i} (texel {}, channel {}) is {}, expected a finite number",
+            i / 3,
+            i % 3,
+            texels[i]
+        )));
+    }
+    Ok(texels)
 }
 
 /// The training config saved beside a model.
@@ -159,4 +179,33 @@ pub fn load_config(dir: &Path) -> Result<TrainConfig, ReconError> {
     let p = dir.join("config.toml");
     let text = std::fs::read_to_string(&p).map_err(crate::error::io(&p))?;
     TrainConfig::from_toml(&text).map_err(|e| ReconError::Format { file: p, detail: e })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sky_with_a_non_finite_texel_or_the_wrong_size_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("sky.f32");
+        let mut values = vec![0.5f32; 6 * 2 * 2 * 3];
+        let write =
+            |v: &[f32]| std::fs::write(&p, v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>()).unwrap();
+        write(&values);
+        assert_eq!(read_sky(&p, 2).unwrap(), vec![0.5; 72]);
+        values[7] = f32::NAN;
+        write(&values);
+        let e = read_sky(&p, 2).unwrap_err().to_string();
+        assert!(e.contains("sky.f32: value 7 (texel 2, channel 1) is NaN, expected a finite number"), "{e}");
+        let e = read_sky(&p, 3).unwrap_err().to_string();
+        assert!(e.contains("288 bytes, expected a file of 648 bytes (sky_res 3)"), "{e}");
+        assert!(read_sky(&p, 1 << 40).unwrap_err().to_string().contains("at most 512"));
+        #[cfg(unix)]
+        {
+            let z = dir.path().join("zero.f32");
+            std::os::unix::fs::symlink("/dev/zero", &z).unwrap();
+            assert!(read_sky(&z, 2).unwrap_err().to_string().contains("not a regular file"));
+        }
+    }
 }

@@ -67,7 +67,14 @@ pub fn prepare_views(
     let with_priors = scene_dir.join("priors").join("priors.json").is_file();
     let keep = set.keeps(&scene, cfg.held_out_every);
     let training = set == ViewSet::All;
-    crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, training, crate::memory::available_bytes()?)?;
+    let available = crate::memory::available_bytes()?;
+    if training {
+        crate::camera::check_scale(&scene.cameras, cfg.scale)?;
+    }
+    let targets = crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, training, available)?;
+    if training {
+        crate::memory::check_model(cfg, crate::init::actor_tracks(&scene).len(), targets, available)?;
+    }
     let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, set, priors, &ProgressBar::hidden())?;
     Ok((scene, views))
 }
@@ -169,7 +176,9 @@ fn run_in<B: Backend>(
     let mut recent = std::collections::VecDeque::new();
     let mut last = LossParts::default();
     while trainer.next_iteration() < end {
+        let it = trainer.next_iteration();
         let rep = trainer.step()?;
+        check_loss(&rep.loss, it)?;
         last = rep.loss;
         recent.push_back(rep.psnr);
         if recent.len() > 100 {
@@ -217,6 +226,30 @@ fn run_in<B: Backend>(
         views_held_out: views.iter().filter(|v| v.held_out).count(),
         already_finished: false,
     })
+}
+
+/// Refuses a loss that is not finite: training on from it would only write NaN Gaussians (a model
+/// that cannot be read back). The error names the iteration (1-based) and the first bad term.
+fn check_loss(loss: &LossParts, it: usize) -> Result<(), ReconError> {
+    let terms = [
+        ("l1", loss.l1),
+        ("ssim", loss.ssim),
+        ("depth", loss.depth),
+        ("normal", loss.normal),
+        ("geo", loss.geo),
+        ("flat", loss.flat),
+        ("total", loss.total),
+    ];
+    match terms.iter().find(|(_, v)| !v.is_finite()) {
+        None => Ok(()),
+        Some((name, v)) => Err(ReconError::Input(format!(
+            "iteration {}: the {name} loss term is {v} (total {}): training stopped and no model was \
+             written; check the scene's priors (non-finite or non-unit normals, non-finite depths) and \
+             the training settings",
+            it + 1,
+            loss.total
+        ))),
+    }
 }
 
 /// Whether a periodic checkpoint is written after 1-based iteration `n` of a run ending at `end`
@@ -288,5 +321,16 @@ mod tests {
         assert!(checkpoint_due(&every, 500, 15_000, 0.0));
         let never = TrainConfig { checkpoint_interval: 0, ..every };
         assert!(!checkpoint_due(&never, 500, 15_000, 1e6));
+    }
+
+    #[test]
+    fn a_non_finite_loss_stops_training_naming_the_iteration_and_term() {
+        let ok = LossParts { total: 0.5, l1: 0.4, ssim: 0.1, ..Default::default() };
+        assert!(check_loss(&ok, 0).is_ok());
+        let bad = LossParts { normal: f64::NAN, total: f64::NAN, ..ok };
+        let e = check_loss(&bad, 6).unwrap_err().to_string();
+        assert!(e.contains("iteration 7") && e.contains("the normal loss term is NaN"), "{e}");
+        let inf = LossParts { total: f64::NEG_INFINITY, ..ok };
+        assert!(check_loss(&inf, 0).unwrap_err().to_string().contains("the total loss term is -inf"));
     }
 }

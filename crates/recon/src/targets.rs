@@ -28,8 +28,20 @@ pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
 }
 
 /// A loader of the scene's priors for `load_views`; with no `priors/` directory, views get none.
+/// A `priors/` directory without its index (`priors.json` deleted, or not a regular file) is
+/// refused: training on without the priors the scene was given would be silently different.
 pub fn prior_loader(scene_dir: &Path) -> Result<Box<PriorLoader<'static>>, ReconError> {
-    if !scene_dir.join("priors").join("priors.json").is_file() {
+    let dir = scene_dir.join("priors");
+    let index_path = dir.join("priors.json");
+    if !index_path.is_file() {
+        if std::fs::symlink_metadata(&dir).is_ok() {
+            return Err(ReconError::Input(format!(
+                "{}: the scene has a priors directory but no priors.json (a regular file) in it: \
+                 recompute the priors with `carla-gs priors --force`, or remove the directory to train \
+                 without them",
+                index_path.display()
+            )));
+        }
         return Ok(Box::new(|_v: &View| Ok(None)));
     }
     let index = PriorIndex::load(scene_dir).map_err(|e| ReconError::Input(e.to_string()))?;

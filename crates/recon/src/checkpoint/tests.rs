@@ -103,3 +103,23 @@ fn hostile_headers_with_valid_checksums_are_refused_naming_the_field() {
     forge(&p, &good, &payload);
     assert_eq!(load(&p).unwrap(), state());
 }
+
+/// A checkpoint that is not a regular file (a link to `/dev/zero`) or is larger than a checkpoint
+/// of the most Gaussians can be is refused before it is read.
+#[test]
+fn a_checkpoint_that_is_not_a_regular_file_is_refused_unread() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("checkpoint.bin");
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("/dev/zero", &p).unwrap();
+        let e = load_run(&p).unwrap_err().to_string();
+        assert!(e.contains("checkpoint.bin") && e.contains("not a regular file"), "{e}");
+        std::fs::remove_file(&p).unwrap();
+    }
+    let f = std::fs::File::create(&p).unwrap();
+    f.set_len(max_bytes() + 1).unwrap(); // sparse
+    let e = load_run(&p).unwrap_err().to_string();
+    assert!(e.contains(&format!("{} bytes, more than the {}", max_bytes() + 1, max_bytes())), "{e}");
+    assert!(max_bytes() > 14_000_000_000, "10M Gaussians of degree 3 fit");
+}

@@ -39,16 +39,26 @@ pub fn gzip_f32(values: impl Iterator<Item = f32>) -> Vec<u8> {
     enc.finish().expect("writing to memory")
 }
 
-/// Reads a gzip little-endian f32 array and checks its length.
+/// Reads a gzip little-endian f32 array and checks its length. At most one byte more than the
+/// expected size is inflated (a gzip bomb is refused after `4 x expected + 1` bytes, not when memory
+/// runs out), and only from a regular file (a link to `/dev/zero` is refused).
 pub fn read_gz_f32(path: &Path, expected: usize) -> Result<Vec<f32>, PriorError> {
+    let want = expected
+        .checked_mul(4)
+        .ok_or_else(|| PriorError::invalid(path, format!("f32 x {expected}: too many values")))?;
+    let meta = std::fs::metadata(path).map_err(|e| PriorError::io(path, e))?;
+    if !meta.is_file() {
+        return Err(PriorError::invalid(path, "is not a regular file"));
+    }
     let file = std::fs::File::open(path).map_err(|e| PriorError::io(path, e))?;
-    let mut bytes = Vec::new();
-    flate2::read::GzDecoder::new(file).read_to_end(&mut bytes).map_err(|e| PriorError::io(path, e))?;
-    if bytes.len() != expected * 4 {
-        return Err(PriorError::invalid(
-            path,
-            format!("{} bytes, expected {} (f32 x {expected})", bytes.len(), expected * 4),
-        ));
+    let mut bytes = Vec::with_capacity(want.min(1 << 26));
+    flate2::read::GzDecoder::new(file)
+        .take(want as u64 + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| PriorError::io(path, e))?;
+    if bytes.len() != want {
+        let got = if bytes.len() > want { format!("more than {want}") } else { bytes.len().to_string() };
+        return Err(PriorError::invalid(path, format!("inflates to {got} bytes, expected {want} (f32 x {expected})")));
     }
     Ok(bytes.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
 }

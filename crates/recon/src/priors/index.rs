@@ -21,6 +21,40 @@ pub enum DepthSource {
     None,
 }
 
+/// Largest `priors.json` read (about 2,000 bytes an image: half a million images).
+pub const MAX_INDEX_BYTES: u64 = 1 << 30;
+/// Most pixels of one image's priors (a 32k x 32k image).
+pub const MAX_PIXELS: usize = 1 << 30;
+/// How far a prior normal's length may be from 1 (they are written as unit vectors in f32).
+pub const NORMAL_TOLERANCE: f32 = 1e-3;
+
+/// Refuses a depth that is not finite (0 is "none"), naming the file and the pixel.
+pub fn check_depth(path: &Path, depth: &[f32]) -> Result<(), PriorError> {
+    match depth.iter().position(|d| !d.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(PriorError::invalid(
+            path,
+            format!("pixel {i}: depth {}, expected a finite number (0 = none)", depth[i]),
+        )),
+    }
+}
+
+/// Refuses a normal that is neither `[0, 0, 0]` ("none") nor a unit vector (length within
+/// [`NORMAL_TOLERANCE`] of 1), naming the file and the pixel.
+pub fn check_normals(path: &Path, normal: &[[f32; 3]]) -> Result<(), PriorError> {
+    let bad = |n: &[f32; 3]| {
+        let len = n.iter().map(|c| (*c as f64).powi(2)).sum::<f64>().sqrt();
+        *n != [0.0; 3] && ((len - 1.0).abs() > NORMAL_TOLERANCE as f64 || len.is_nan())
+    };
+    match normal.iter().position(bad) {
+        None => Ok(()),
+        Some(i) => Err(PriorError::invalid(
+            path,
+            format!("pixel {i}: normal {:?}, expected a unit vector (or [0, 0, 0] for none)", normal[i]),
+        )),
+    }
+}
+
 /// File names (relative to `priors/`) of one image's maps.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PriorFiles {
@@ -91,6 +125,17 @@ impl PriorIndex {
     /// Reads `<scene_dir>/priors/priors.json`; errors name the file (and field).
     pub fn load(scene_dir: &Path) -> Result<PriorIndex, PriorError> {
         let file = scene_dir.join(PRIORS_DIR).join(PRIORS_FILE);
+        let meta = std::fs::metadata(&file).map_err(|e| PriorError::io(&file, e))?;
+        if !meta.is_file() || meta.len() > MAX_INDEX_BYTES {
+            return Err(PriorError::invalid(
+                &file,
+                format!(
+                    "expected a regular file of at most {MAX_INDEX_BYTES} bytes (found {} bytes, regular file: {})",
+                    meta.len(),
+                    meta.is_file()
+                ),
+            ));
+        }
         let index: PriorIndex = scene::format::read_json(&file)?;
         if index.format != PRIORS_FORMAT {
             return Err(PriorError::invalid(
@@ -109,10 +154,20 @@ impl PriorIndex {
     pub fn maps(&self, scene_dir: &Path, frame: usize, camera: &str) -> Result<Option<PriorMaps>, PriorError> {
         let Some(e) = self.entry(frame, camera) else { return Ok(None) };
         let dir = scene_dir.join(PRIORS_DIR);
-        let n = e.width * e.height;
-        let depth = read_gz_f32(&dir.join(&e.files.depth), n)?;
-        let normal =
-            read_gz_f32(&dir.join(&e.files.normal), 3 * n)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let n = e.width.checked_mul(e.height).filter(|n| *n <= MAX_PIXELS).ok_or_else(|| {
+            let file = dir.join(PRIORS_FILE);
+            PriorError::invalid(
+                file,
+                format!("image {frame} {camera}: {}x{} pixels, at most {MAX_PIXELS}", e.width, e.height),
+            )
+        })?;
+        let depth_path = dir.join(&e.files.depth);
+        let depth = read_gz_f32(&depth_path, n)?;
+        check_depth(&depth_path, &depth)?;
+        let normal_path = dir.join(&e.files.normal);
+        let normal: Vec<[f32; 3]> =
+            read_gz_f32(&normal_path, 3 * n)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        check_normals(&normal_path, &normal)?;
         let mask = |f: &str| read_mask_png(&dir.join(f), e.width, e.height);
         Ok(Some(PriorMaps {
             width: e.width,
