@@ -15,6 +15,7 @@ pub mod replace_check;
 pub mod replace_showcase;
 pub mod report;
 pub mod run;
+pub mod run_out;
 pub mod synth_asset;
 
 pub use error::PipelineError;

@@ -3,7 +3,10 @@
 //! metrics, the t0 attempts, the placement checks of the video), `scenario.xosc` (OpenSCENARIO
 //! 1.2), `bev.png` and `tracking.png`, and one video per layout under `videos/`. `run.json`
 //! summarises all of it (written last). When no attempt produced a case, `run.json` says why for
-//! each t0 and nothing else is written.
+//! each t0 and nothing else is written. Every setting (layouts, rate, scale, lead-in, cameras, the
+//! model's actor for an `--adversary`, t0) and `--out` itself are checked before any work; the
+//! files are built in a staging directory and moved in at the end (`run_out`), so a failed run
+//! leaves `--out` as it was.
 
 use crate::case::{select_case_with, Attempt, CaseRequest, T0Choice};
 use crate::PipelineError;
@@ -80,6 +83,57 @@ impl RenderSettings {
     pub fn resolved_layouts(&self, scene: &Scene) -> Result<Vec<Layout>, PipelineError> {
         self.parsed_layouts()?.iter().map(|l| Ok(l.resolve(scene)?)).collect()
     }
+
+    /// The video spec of one layout.
+    pub fn spec(&self, layout: &Layout) -> VideoSpec {
+        VideoSpec {
+            layout: layout.clone(),
+            fps: self.fps,
+            lead_in_s: self.lead_in_s,
+            scale: self.scale,
+            png_only: self.png_only,
+            ..VideoSpec::default()
+        }
+    }
+
+    /// The resolved layouts, with every setting checked against `scene` before any work
+    /// (`render::video::check_spec`: rate, lead-in, scale and the cameras of each layout).
+    pub fn checked_layouts(&self, scene: &Scene) -> Result<Vec<Layout>, PipelineError> {
+        let layouts = self.resolved_layouts(scene)?;
+        for l in &layouts {
+            render::video::check_spec(scene, &self.spec(l))?;
+        }
+        Ok(layouts)
+    }
+}
+
+/// Everything of a run that can be checked before it plans anything: the render settings, every
+/// camera the placement check may draw, the model's actor of an `--adversary` the scene has, t0.
+fn check_before_work<B: Backend>(
+    inputs: &RunInputs<B>,
+    req: &CaseRequest,
+    t0: &T0Choice,
+) -> Result<Vec<Layout>, PipelineError> {
+    let layouts = inputs.render.checked_layouts(inputs.scene)?;
+    let first = inputs.scene.frames[0].timestamp_s;
+    for cam in &inputs.scene.cameras {
+        render::video::camera_at(inputs.scene, &cam.name, first, inputs.render.scale)?;
+    }
+    if let Some(track) = &req.adversary {
+        if inputs.scene.track(track).is_some() {
+            render::video::actor_index(inputs.model, track)?;
+        }
+    }
+    if let T0Choice::At(t) = t0 {
+        let (start, end) = (first, inputs.scene.frames[inputs.scene.frames.len() - 1].timestamp_s);
+        if !(t.is_finite() && *t >= 0.0 && start + t <= end) {
+            return Err(PipelineError::stage(
+                "--t0",
+                format!("must be from 0 to {:.2} s (the log's length), got {t:?}", end - start),
+            ));
+        }
+    }
+    Ok(layouts)
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -114,6 +168,9 @@ pub struct RunSummary {
     /// The chosen case (every round of refinement), if any attempt produced one.
     pub result: Option<CaseResult>,
     pub metrics: Option<CaseMetrics>,
+    /// Why there is no case, when there is none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_case: Option<String>,
     pub placement: Vec<Placement>,
     pub videos: Vec<Video>,
     /// File names under the run directory.
@@ -128,34 +185,6 @@ pub struct RunInputs<'a, B: Backend> {
     pub backend: &'a B,
     pub render: &'a RenderSettings,
     pub out: &'a Path,
-}
-
-/// Every file and directory a run writes, removed before a new run so a directory never mixes two.
-const OUTPUTS: [&str; 10] = [
-    "run.json",
-    "scenario.json",
-    "executed.json",
-    "metrics.json",
-    "scenario.xosc",
-    "scenario.xodr",
-    "bev.png",
-    "tracking.png",
-    "placement",
-    "videos",
-];
-
-fn clear_outputs(out: &Path) -> Result<(), PipelineError> {
-    for name in OUTPUTS {
-        let p = out.join(name);
-        let r = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
-        match r {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(PipelineError::Scene(scene::SceneError::io(&p, e)))
-            }
-            _ => {}
-        }
-    }
-    Ok(())
 }
 
 /// Runs one case and writes its files under `inputs.out`, with the built-in physics.
@@ -178,11 +207,12 @@ pub fn run_with<B: Backend>(
     progress: &ProgressBar,
     simulate: Box<cases::runner::SimulateFn>,
 ) -> Result<RunSummary, PipelineError> {
-    let out = inputs.out;
-    // A layout the scene cannot show is refused before anything is planned or removed.
-    let layouts = inputs.render.resolved_layouts(inputs.scene)?;
-    std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
-    clear_outputs(out)?;
+    // Settings the scene or model cannot honour, and an --out that is not ours, are refused
+    // before anything is planned or written.
+    let layouts = check_before_work(inputs, req, t0)?;
+    let staged = crate::run_out::StagedRun::new(inputs.out)?;
+    let out = staged.path().to_path_buf();
+    let out = out.as_path();
     let mut timings = Vec::new();
     let clock = Instant::now();
     let selection = select_case_with(inputs.scene, req, t0, llm, simulate);
@@ -194,13 +224,24 @@ pub fn run_with<B: Backend>(
         attempts: selection.attempts,
         result: None,
         metrics: None,
+        no_case: None,
         placement: vec![],
         videos: vec![],
         files: vec![],
         timings,
     };
     let Some((result, executed)) = selection.chosen else {
+        summary.no_case = Some(if summary.attempts.is_empty() {
+            format!(
+                "no t0 to try: the log is {:.2} s long and every t0 searched needs {} s of log after it",
+                inputs.scene.duration_s(),
+                cases::spec::MIN_HORIZON_S
+            )
+        } else {
+            "no attempt produced a case: each attempt's status and detail say why".into()
+        });
         write_json_pretty(&out.join("run.json"), &summary)?;
+        staged.commit()?;
         return Ok(summary);
     };
     let best = result.best().expect("a chosen case has rounds").clone();
@@ -235,16 +276,10 @@ pub fn run_with<B: Backend>(
     std::fs::create_dir_all(&videos_dir).map_err(PipelineError::io(&videos_dir))?;
     let mut videos = Vec::new();
     for layout in layouts {
-        let spec = VideoSpec {
-            layout: layout.clone(),
-            fps: inputs.render.fps,
-            lead_in_s: inputs.render.lead_in_s,
-            scale: inputs.render.scale,
-            png_only: inputs.render.png_only,
-            ..VideoSpec::default()
-        };
+        let spec = inputs.render.spec(&layout);
         progress.set_message(format!("video {}", layout.slug()));
-        let output = view.render_video(&spec, &videos_dir.join(format!("{}.mp4", layout.slug())), progress)?;
+        let mut output = view.render_video(&spec, &videos_dir.join(format!("{}.mp4", layout.slug())), progress)?;
+        output.path = staged.final_path(inputs.out, &output.path);
         videos.push(Video { layout: layout.slug(), output });
     }
     summary.timings.push(Timing { stage: "render videos".into(), seconds: clock.elapsed().as_secs_f64() });
@@ -254,5 +289,6 @@ pub fn run_with<B: Backend>(
     summary.videos = videos;
     summary.files = files;
     write_json_pretty(&out.join("run.json"), &summary)?;
+    staged.commit()?;
     Ok(summary)
 }

@@ -161,3 +161,64 @@ fn run_writes_a_replayable_case() {
     assert!(s2.result.is_none());
     assert!(s2.attempts[0].detail.as_deref().unwrap_or("").contains("no-such-track"), "{:?}", s2.attempts);
 }
+
+#[test]
+fn run_refuses_bad_settings_and_foreign_outputs_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = synth_scene(&tmp.path().join("scene"));
+    let model = box_model(&scene);
+    let out = tmp.path().join("run");
+    let req = CaseRequest {
+        behavior: Behavior::SuddenBraking,
+        agent: AgentName::Planner,
+        adversary: Some("lead-1".into()),
+        zone: None,
+        ttc_s: None,
+        seed: 0,
+        seeds_per_t0: 1,
+        refine_rounds: 0,
+        window: pipeline::case::rendered_window(),
+    };
+    let bar = indicatif::ProgressBar::hidden();
+    let good = pipeline::run::RenderSettings {
+        layouts: vec!["single:FRONT".into()],
+        fps: 5.0,
+        scale: 0.25,
+        ..Default::default()
+    };
+    // Settings that would only fail at the render stage are refused before --out is touched.
+    for bad in [
+        pipeline::run::RenderSettings { fps: 0.0, ..good.clone() },
+        pipeline::run::RenderSettings { fps: f64::NAN, ..good.clone() },
+        pipeline::run::RenderSettings { fps: 1e6, ..good.clone() },
+        pipeline::run::RenderSettings { scale: 1e3, ..good.clone() },
+        pipeline::run::RenderSettings { lead_in_s: f64::NAN, ..good.clone() },
+    ] {
+        let inputs = pipeline::run::RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &bad, out: &out };
+        assert!(pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &bar).is_err(), "{bad:?}");
+        assert!(!out.exists(), "{bad:?}: nothing written");
+    }
+    let inputs = pipeline::run::RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &good, out: &out };
+    for t in [f64::NAN, 1e308, -1.0] {
+        assert!(pipeline::run::run(&inputs, &req, &T0Choice::At(t), None, &bar).is_err(), "t0 {t}");
+        assert!(!out.exists(), "t0 {t}: nothing written");
+    }
+    // The adversary's actor missing from the model is refused before planning.
+    let mut no_actor = model.clone();
+    no_actor.actors.retain(|a| a.track_id != "lead-1");
+    let i2 = pipeline::run::RunInputs { scene: &scene, model: &no_actor, backend: &Cpu, render: &good, out: &out };
+    let e = pipeline::run::run(&i2, &req, &T0Choice::At(0.5), None, &bar).expect_err("refused").to_string();
+    assert!(e.contains("lead-1") && !out.exists(), "{e}");
+    // A person's files under videos/ or placement/ of a run directory are never deleted.
+    std::fs::create_dir_all(out.join("videos")).unwrap();
+    std::fs::write(out.join("videos/notes.txt"), b"keep").unwrap();
+    let e = pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &bar).expect_err("refused").to_string();
+    assert!(e.contains("notes.txt"), "{e}");
+    assert_eq!(std::fs::read(out.join("videos/notes.txt")).unwrap(), b"keep");
+    assert!(!out.join("run.json").exists());
+    std::fs::remove_file(out.join("videos/notes.txt")).unwrap();
+    // Into an empty directory the run goes through; nothing is left beside it.
+    let s = pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &bar).unwrap();
+    assert!(s.videos[0].output.path.starts_with(&out) && s.videos[0].output.path.exists(), "{:?}", s.videos);
+    assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 2, "scene and run only");
+}

@@ -3,6 +3,9 @@
 //! loading) into a temporary file that is renamed over the target when ffmpeg succeeds. Without
 //! ffmpeg, or when asked, the frames become a PNG sequence in a directory beside the target
 //! (`<stem>_frames/frame_000000.png`, staged and renamed the same way) and the output says why.
+//! What already is at the target is checked first (`clip_out`: only our own clips are replaced),
+//! and on any error, or when the encoder is dropped unfinished, ffmpeg is stopped and its
+//! temporary file removed.
 
 use crate::canvas::Canvas;
 use crate::RenderError;
@@ -46,8 +49,27 @@ pub fn find_ffmpeg() -> Option<PathBuf> {
     ok.then_some(candidate)
 }
 
+/// A running ffmpeg and its temporary output: dropped unfinished, it stops ffmpeg and removes
+/// the temporary file.
+struct Mp4Job {
+    child: Option<Child>,
+    stdin: Option<ChildStdin>,
+    tmp: PathBuf,
+}
+
+impl Drop for Mp4Job {
+    fn drop(&mut self) {
+        drop(self.stdin.take());
+        if let Some(mut child) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+        let _ = std::fs::remove_file(&self.tmp);
+    }
+}
+
 enum Target {
-    Mp4 { child: Child, stdin: Option<ChildStdin>, tmp: PathBuf },
+    Mp4(Mp4Job),
     Png { staged: StagedDir, why: String },
 }
 
@@ -63,10 +85,19 @@ pub struct Encoder {
 
 impl Encoder {
     /// Opens `path` (an `.mp4`) for `width x height` frames (made even by padding) at `fps`.
-    /// `png_only` forces the PNG sequence.
-    pub fn open(path: &Path, width: usize, height: usize, fps: f64, png_only: bool) -> Result<Self, RenderError> {
+    /// `png_only` forces the PNG sequence. A file already at `path` that is not an MP4 is
+    /// replaced only with `force`, a frames directory only when it holds nothing but our frames.
+    pub fn open(
+        path: &Path,
+        width: usize,
+        height: usize,
+        fps: f64,
+        png_only: bool,
+        force: bool,
+    ) -> Result<Self, RenderError> {
         let (width, height) = (width + width % 2, height + height % 2);
         let ffmpeg = if png_only { None } else { find_ffmpeg() };
+        crate::clip_out::check_clip_out(path, ffmpeg.is_none(), force)?;
         let target = match ffmpeg {
             Some(bin) => {
                 let name = path.file_name().map_or("video".into(), |n| n.to_string_lossy().into_owned());
@@ -86,7 +117,7 @@ impl Encoder {
                         detail: format!("cannot start {}: {e}", bin.display()),
                     })?;
                 let stdin = child.stdin.take();
-                Target::Mp4 { child, stdin, tmp }
+                Target::Mp4(Mp4Job { child: Some(child), stdin, tmp })
             }
             None => {
                 let why = if png_only {
@@ -116,7 +147,7 @@ impl Encoder {
             c
         };
         match &mut self.target {
-            Target::Mp4 { stdin, .. } => {
+            Target::Mp4(Mp4Job { stdin, .. }) => {
                 let written = match stdin.as_mut() {
                     Some(pipe) => pipe.write_all(&frame.rgb).map_err(|e| e.to_string()),
                     None => Err("the pipe is closed".to_string()),
@@ -138,20 +169,21 @@ impl Encoder {
     pub fn finish(self) -> Result<VideoOutput, RenderError> {
         let (w, h, fps, frames) = (self.width, self.height, self.fps, self.frames);
         let (path, kind) = match self.target {
-            Target::Mp4 { child, stdin, tmp } => {
-                drop(stdin);
+            Target::Mp4(mut job) => {
+                drop(job.stdin.take());
+                let child = job.child.take().expect("ffmpeg runs until finish");
+                // On every error below `job` is dropped, which removes the temporary file.
                 let out = child
                     .wait_with_output()
                     .map_err(|e| RenderError::Encoder { file: self.path.clone(), detail: e.to_string() })?;
                 if !out.status.success() {
-                    let _ = std::fs::remove_file(&tmp);
                     let err = String::from_utf8_lossy(&out.stderr).trim().to_string();
                     return Err(RenderError::Encoder {
                         file: self.path,
                         detail: format!("ffmpeg failed ({}): {err}", out.status),
                     });
                 }
-                std::fs::rename(&tmp, &self.path).map_err(|e| RenderError::io(&self.path, e))?;
+                std::fs::rename(&job.tmp, &self.path).map_err(|e| RenderError::io(&self.path, e))?;
                 (self.path, VideoKind::Mp4)
             }
             Target::Png { staged, why } => (staged.commit()?, VideoKind::PngSequence { why }),
@@ -178,7 +210,7 @@ mod tests {
     fn png_sequence_when_asked_or_without_ffmpeg() {
         let d = tempfile::tempdir().unwrap();
         let path = d.path().join("clip.mp4");
-        let mut e = Encoder::open(&path, 17, 9, 24.0, true).unwrap();
+        let mut e = Encoder::open(&path, 17, 9, 24.0, true, false).unwrap();
         for f in frames(3) {
             e.push(&f).unwrap();
         }
@@ -188,7 +220,7 @@ mod tests {
         assert!(out.path.join("frame_000002.png").is_file());
         assert!(!path.exists());
         // A frame larger than the clip is refused, not cut.
-        let mut e = Encoder::open(&path, 4, 4, 24.0, true).unwrap();
+        let mut e = Encoder::open(&path, 4, 4, 24.0, true, false).unwrap();
         assert!(e.push(&Canvas::new(8, 8, [0, 0, 0])).is_err());
     }
 
@@ -200,7 +232,7 @@ mod tests {
         }
         let d = tempfile::tempdir().unwrap();
         let path = d.path().join("clip.mp4");
-        let mut e = Encoder::open(&path, 17, 9, 24.0, false).unwrap();
+        let mut e = Encoder::open(&path, 17, 9, 24.0, false, false).unwrap();
         for f in frames(5) {
             e.push(&f).unwrap();
         }
@@ -209,5 +241,23 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[4..8], b"ftyp", "an MP4 container");
         assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1, "no temporary file left");
+    }
+
+    #[test]
+    fn an_unfinished_or_failed_mp4_leaves_no_temporary_file() {
+        if find_ffmpeg().is_none() {
+            println!("SKIP: ffmpeg is not installed (tools/setup.sh installs it)");
+            return;
+        }
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("clip.mp4");
+        let mut e = Encoder::open(&path, 17, 9, 24.0, false, false).unwrap();
+        e.push(&frames(1)[0]).unwrap();
+        drop(e);
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 0, "temporary file left behind");
+        // A directory in the target's place is refused before ffmpeg starts.
+        std::fs::create_dir(&path).unwrap();
+        assert!(Encoder::open(&path, 17, 9, 24.0, false, true).is_err());
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1, "only the directory");
     }
 }

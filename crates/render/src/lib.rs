@@ -12,6 +12,7 @@ pub mod backproject;
 pub mod bev;
 pub mod budget;
 pub mod canvas;
+pub mod clip_out;
 pub mod encode;
 pub mod error;
 pub mod layout;

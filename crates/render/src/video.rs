@@ -32,6 +32,36 @@ pub struct VideoSpec {
     pub bev_ahead_m: f64,
     /// Write PNG frames even when ffmpeg is there.
     pub png_only: bool,
+    /// Replace a file at the target that is not an MP4 (`--force`; a frames directory holding
+    /// anything but our frames is never replaced).
+    pub force: bool,
+}
+
+/// The highest video frame rate (Hz) a clip may ask for.
+pub const MAX_FPS: f64 = 240.0;
+
+/// The longest lead-in (s) before the corner case.
+pub const MAX_LEAD_IN_S: f64 = 3600.0;
+
+/// Checks `spec` against `scene` before anything is planned, drawn or written: the rate, the
+/// lead-in, and every camera of the
+/// layout at the spec's scale (scale, image size, pinhole). The flags are named as the CLI has them.
+pub fn check_spec(scene: &Scene, spec: &VideoSpec) -> Result<(), RenderError> {
+    let bad = |what: &str, detail: String| Err(RenderError::Settings { what: what.into(), detail });
+    if !(spec.fps.is_finite() && spec.fps > 0.0 && spec.fps <= MAX_FPS) {
+        return bad("--fps", format!("must be a rate in Hz above 0 and at most {MAX_FPS}, got {}", spec.fps));
+    }
+    if !(spec.lead_in_s.is_finite() && (0.0..=MAX_LEAD_IN_S).contains(&spec.lead_in_s)) {
+        return bad("--lead-in", format!("must be from 0 to {MAX_LEAD_IN_S} s, got {}", spec.lead_in_s));
+    }
+    let first = scene.frames[0].timestamp_s;
+    crate::budget::check_scale("--scale", spec.scale)?;
+    for tile in spec.layout.tiles(scene)? {
+        if let Tile::View { camera, .. } = tile {
+            camera_at(scene, &camera, first, spec.scale)?;
+        }
+    }
+    Ok(())
 }
 
 impl Default for VideoSpec {
@@ -43,6 +73,7 @@ impl Default for VideoSpec {
             scale: 1.0,
             bev_ahead_m: 20.0,
             png_only: false,
+            force: false,
         }
     }
 }
@@ -132,6 +163,9 @@ impl<'a, B: Backend> CaseView<'a, B> {
     ) -> Result<VideoOutput, RenderError> {
         let timeline = Timeline::for_case(self.scene, self.executed, spec.fps, spec.lead_in_s)?;
         let tiles = spec.layout.tiles(self.scene)?;
+        // What is at `out` is checked before the first frame is drawn (and again when it opens).
+        let png = spec.png_only || crate::encode::find_ffmpeg().is_none();
+        crate::clip_out::check_clip_out(out, png, spec.force)?;
         progress.set_length(timeline.times.len() as u64);
         progress.set_position(0);
         let mut encoder: Option<Encoder> = None;
@@ -139,7 +173,9 @@ impl<'a, B: Backend> CaseView<'a, B> {
             let frame = self.frame(&tiles, t, spec)?;
             let enc = match &mut encoder {
                 Some(e) => e,
-                None => encoder.insert(Encoder::open(out, frame.width, frame.height, spec.fps, spec.png_only)?),
+                None => {
+                    encoder.insert(Encoder::open(out, frame.width, frame.height, spec.fps, spec.png_only, spec.force)?)
+                }
             };
             enc.push(&frame)?;
             progress.set_position(k as u64 + 1);

@@ -8,6 +8,9 @@ pub struct Args {
     /// The OpenDRIVE file to write.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out that is not what this command writes.
+    #[arg(long)]
+    force: bool,
     /// Width of every lane (m, 0.5 to 20): WOMD lane centres carry none.
     #[arg(long, default_value_t = 3.5)]
     lane_width: f64,
@@ -20,6 +23,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "--lane-width: must be from {lo} to {hi} m, got {:?}",
         a.lane_width
     );
+    super::out_file::check_out_file(&a.out, &[&a.scene], a.force, "an OpenDRIVE file", super::out_file::is_xodr)?;
     let scene = scene::load_scene(&a.scene)?;
     let opts = export::XodrOptions { lane_width_m: a.lane_width, ..Default::default() };
     let built = export::write_xodr_file(&a.out, &scene, &opts)?;

@@ -14,6 +14,7 @@ pub mod inspect;
 pub mod llm;
 pub mod message;
 pub mod metrics;
+pub mod out_file;
 pub mod priors;
 pub mod progress;
 pub mod reason;

@@ -43,6 +43,9 @@ pub struct Args {
     /// Where to write the plan.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out that is not what this command writes.
+    #[arg(long)]
+    force: bool,
     /// Zone layout: ours (adjacent to the ego) or the original code's.
     #[arg(long, value_enum, default_value = "adjacent")]
     zones: Layout,
@@ -97,6 +100,14 @@ fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str
 /// Writes the plan (exit 0), or says why no case is possible ([`super::NoCase`], exit 3).
 pub fn run(a: Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.t0.is_finite(), "--t0 must be a finite number of seconds, got {}", a.t0);
+    let plan_json = super::out_file::has_format("carla-gs-plan/");
+    super::out_file::check_out_file(
+        &a.out,
+        &[&a.scene],
+        a.force,
+        "a corner-case plan (carla-gs-plan JSON)",
+        plan_json,
+    )?;
     let scene = scene::load_scene(&a.scene)?;
     let options = ReasonOptions {
         t0: scene.frames[0].timestamp_s + a.t0,

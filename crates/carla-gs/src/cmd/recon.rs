@@ -241,12 +241,16 @@ pub struct RenderArgs {
     /// Draw only the tracked actors (over black).
     #[arg(long)]
     actors_only: bool,
+    /// Replace an existing --out that is not what this command writes.
+    #[arg(long)]
+    force: bool,
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
 }
 
 pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.shift_m.is_finite(), "--shift-m must be a finite number of metres, got {}", a.shift_m);
+    super::out_file::check_out_file(&a.out, &[&a.model, &a.scene], a.force, "a PNG image", super::out_file::is_png)?;
     if let Some(s) = a.scale {
         render::budget::check_scale("--scale", s)?;
     }

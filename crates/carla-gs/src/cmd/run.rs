@@ -109,7 +109,29 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         Some(t) => T0Choice::At(t),
         None => T0Choice::Search(T0Spec::Every(0.5)),
     };
+    let log_s = scene.frames[scene.frames.len() - 1].timestamp_s - scene.frames[0].timestamp_s;
+    if let Some(t) = a.t0 {
+        anyhow::ensure!(
+            t.is_finite() && (0.0..=log_s).contains(&t),
+            "--t0: must be from 0 to {log_s:.2} s (the log's length), got {t:?}"
+        );
+    }
     let mut flags = a.constraints.apply(reason::ReasonOptions { behavior, seed: a.seed, ..Default::default() })?;
+    // An explicit --ttc past the log's end at every t0 tried is no case, as `reason` says (exit 3).
+    if let Some(ttc) = flags.ttc_s {
+        let first_t0 = match &t0 {
+            T0Choice::At(t) => Some(*t),
+            T0Choice::Search(spec) => spec.times(&scene).first().copied(),
+        };
+        if let Some(t) = first_t0.filter(|t| t + ttc > log_s + 1e-9) {
+            return Err(super::NoCase(format!(
+                "no feasible adversary at t0 = {t:.2} s: --ttc {ttc} s is past the end of the log ({:.2} s after t0 = \
+                 {t:.2} s), where the ego's motion is unknown; nothing written",
+                log_s - t
+            ))
+            .into());
+        }
+    }
     if let Some(text) = &a.describe.describe {
         let mut reader = a.describe.backend(&a.llm, agent == AgentName::Openai)?;
         let (intent, summary, t) =
@@ -158,6 +180,14 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     .with_context(|| format!("run of {} failed", a.scene.display()))?;
     pb.finish_and_clear();
     print_run(&s, &a.out);
+    if s.result.is_none() {
+        return Err(super::NoCase(format!(
+            "{}; {} lists the attempts",
+            s.no_case.as_deref().unwrap_or("no attempt produced a case"),
+            a.out.join("run.json").display()
+        ))
+        .into());
+    }
     Ok(())
 }
 
@@ -224,11 +254,20 @@ pub struct VideoCmdArgs {
     /// Output `.mp4` (a `<stem>_frames/` PNG directory without ffmpeg); one layout.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out file that is not an MP4 (a frames directory holding anything
+    /// but our frames is never replaced).
+    #[arg(long)]
+    force: bool,
     #[command(flatten)]
     video: VideoArgs,
 }
 
 pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
+    let inputs = [a.executed.as_path(), a.scene.as_path(), a.model.as_path()];
+    super::out_file::check_not_input(&a.out, &inputs)?;
+    super::out_file::check_not_input(&render::encode::png_dir(&a.out), &inputs)?;
+    let png = a.video.png || render::encode::find_ffmpeg().is_none();
+    render::clip_out::check_clip_out(&a.out, png, a.force)?;
     let scene = scene::load_scene(&a.scene)?;
     let (model, _) = recon::model_io::load_model(&a.model)?;
     let executed = scene::executed::load_executed(&a.executed)?;
@@ -243,8 +282,10 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
         lead_in_s: settings.lead_in_s,
         scale: settings.scale,
         png_only: settings.png_only,
+        force: a.force,
         ..Default::default()
     };
+    render::video::check_spec(&scene, &spec)?;
     let pb = count_bar("frames");
     let out = match a.video.device {
         Device::Cpu => {

@@ -12,6 +12,9 @@ pub struct Args {
     /// Where to write `executed.json`.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out that is not what this command writes.
+    #[arg(long)]
+    force: bool,
     /// Rollout configuration JSON (vehicle, actuation, tracker); defaults if absent.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -27,6 +30,16 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut inputs = vec![a.plan.as_path(), a.scene.as_path()];
+    inputs.extend(a.config.as_deref());
+    let executed_json = super::out_file::has_format("carla-gs-executed/");
+    super::out_file::check_out_file(
+        &a.out,
+        &inputs,
+        a.force,
+        "an executed case (carla-gs-executed JSON)",
+        executed_json,
+    )?;
     let scene = scene::load_scene(&a.scene)?;
     let plan = scene::plan::load_plan(&a.plan)?;
     let mut cfg: sim::RolloutConfig = match &a.config {

@@ -1,0 +1,203 @@
+//! Where a run writes: the checks on `--out` before any work, and the staged build. A run is
+//! built in a staging directory beside its destination and moved in at the end, so a failed run
+//! leaves the destination as it was. The destination must be absent, empty or one of our run
+//! directories (`run.json` with our format marker, or holding only names a run writes); inside
+//! ours, `videos/` and `placement/` must hold only files a run writes, since the old outputs are
+//! removed before the new ones move in. Anything else of a person's is refused, never deleted;
+//! other files at the top of a run directory are left alone.
+
+use crate::PipelineError;
+use std::path::{Path, PathBuf};
+
+/// Every file and directory a run writes at the top of its directory.
+pub const OUTPUTS: [&str; 10] = [
+    "run.json",
+    "scenario.json",
+    "executed.json",
+    "metrics.json",
+    "scenario.xosc",
+    "scenario.xodr",
+    "bev.png",
+    "tracking.png",
+    "placement",
+    "videos",
+];
+
+/// Names the demo's stage cache keeps beside a run's outputs.
+const ALSO_OURS: [&str; 1] = [crate::cache::MARKER];
+
+fn refuse(path: &Path, detail: impl std::fmt::Display) -> PipelineError {
+    PipelineError::stage("--out", format!("{}: {detail}; nothing was written", path.display()))
+}
+
+fn names(dir: &Path) -> Result<Vec<(String, PathBuf)>, PipelineError> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(dir).map_err(PipelineError::io(dir))? {
+        let e = e.map_err(PipelineError::io(dir))?;
+        v.push((e.file_name().to_string_lossy().into_owned(), e.path()));
+    }
+    v.sort();
+    Ok(v)
+}
+
+/// The first path at or under `path` (named `name`, under `sub`: `videos` or `placement`) that a
+/// run does not write, if any.
+fn foreign_inside(sub: &str, name: &str, path: &Path) -> Result<Option<PathBuf>, PipelineError> {
+    let file = path.is_file();
+    let ours = match sub {
+        "placement" => file && name.starts_with('t') && name.ends_with(".png"),
+        _ if name.starts_with('.') && name.ends_with(".tmp") => true,
+        _ if file => name.ends_with(".mp4"),
+        _ if name.ends_with("_frames") && path.is_dir() => {
+            return Ok(render::clip_out::foreign_in_frames_dir(path)?.map(|n| path.join(n)));
+        }
+        _ => false,
+    };
+    Ok((!ours).then(|| path.to_path_buf()))
+}
+
+/// Refuses `out` unless a run may write there (see the module's header).
+pub fn check_out(out: &Path) -> Result<(), PipelineError> {
+    let Ok(meta) = std::fs::symlink_metadata(out) else { return Ok(()) };
+    if !meta.is_dir() {
+        return Err(refuse(out, "exists and is not a directory; expected a run directory"));
+    }
+    let entries = names(out)?;
+    let marked = scene::owned::has_format_marker(out, "run.json", crate::run::RUN_FORMAT);
+    let only_ours = entries.iter().all(|(n, _)| OUTPUTS.contains(&n.as_str()) || ALSO_OURS.contains(&n.as_str()));
+    if !entries.is_empty() && !marked && !only_ours {
+        return Err(refuse(
+            out,
+            format!(
+                "is a non-empty directory that is not a run directory (no run.json with format \"{}\"); \
+                 choose an empty or new --out",
+                crate::run::RUN_FORMAT
+            ),
+        ));
+    }
+    for sub in ["videos", "placement"] {
+        let dir = out.join(sub);
+        if !dir.exists() {
+            continue;
+        }
+        if !dir.is_dir() {
+            return Err(refuse(&dir, "is not a directory a run writes"));
+        }
+        for (name, path) in names(&dir)? {
+            if let Some(foreign) = foreign_inside(sub, &name, &path)? {
+                return Err(refuse(&foreign, "was not written by a run and would be removed with the old outputs"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A run under construction beside its destination.
+pub struct StagedRun {
+    staged: scene::StagedDir,
+    dest: PathBuf,
+}
+
+impl StagedRun {
+    /// Checks `out` ([`check_out`]) and starts staging it.
+    pub fn new(out: &Path) -> Result<Self, PipelineError> {
+        check_out(out)?;
+        // `--out .` or `..`: stage beside the real directory.
+        let dest = if out.exists() { out.canonicalize().map_err(PipelineError::io(out))? } else { out.to_path_buf() };
+        let staged = scene::StagedDir::new(&dest, true)?;
+        Ok(StagedRun { staged, dest })
+    }
+
+    /// Where to write the run's files now.
+    pub fn path(&self) -> &Path {
+        self.staged.path()
+    }
+
+    /// `path` (under the staging directory) as it will be once the run is moved in under `out`.
+    pub fn final_path(&self, out: &Path, path: &Path) -> PathBuf {
+        path.strip_prefix(self.staged.path()).map_or_else(|_| path.to_path_buf(), |rel| out.join(rel))
+    }
+
+    /// Moves the finished run in: a new directory in one rename; into an existing run directory,
+    /// the old outputs are removed (only our names) and the new ones renamed in.
+    pub fn commit(self) -> Result<(), PipelineError> {
+        if !self.dest.exists() {
+            self.staged.commit()?;
+            return Ok(());
+        }
+        // Checked again: the directory may have changed while the case ran.
+        check_out(&self.dest)?;
+        for name in OUTPUTS {
+            let p = self.dest.join(name);
+            let r = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
+            match r {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(PipelineError::io(&p)(e)),
+                _ => {}
+            }
+        }
+        for (name, from) in names(self.staged.path())? {
+            let to = self.dest.join(&name);
+            std::fs::rename(&from, &to).map_err(PipelineError::io(&to))?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn foreign_directories_and_files_are_refused() {
+        let root = tempfile::tempdir().unwrap();
+        check_out(&root.path().join("new")).unwrap();
+        let file = root.path().join("f");
+        std::fs::write(&file, b"x").unwrap();
+        assert!(check_out(&file).is_err());
+        let d = root.path().join("d");
+        std::fs::create_dir(&d).unwrap();
+        check_out(&d).unwrap();
+        std::fs::write(d.join("notes.txt"), b"mine").unwrap();
+        let e = check_out(&d).unwrap_err().to_string();
+        assert!(e.contains("not a run directory"), "{e}");
+        std::fs::write(d.join("run.json"), format!(r#"{{"format": "{}"}}"#, crate::run::RUN_FORMAT)).unwrap();
+        check_out(&d).unwrap();
+        std::fs::create_dir_all(d.join("videos/front3_frames")).unwrap();
+        std::fs::write(d.join("videos/front3_frames/frame_000000.png"), b"png").unwrap();
+        std::fs::write(d.join("videos/front3.mp4"), b"mp4").unwrap();
+        std::fs::create_dir(d.join("placement")).unwrap();
+        std::fs::write(d.join("placement/t1.00_FRONT.png"), b"png").unwrap();
+        check_out(&d).unwrap();
+        for foreign in ["videos/notes.txt", "placement/keep.txt", "videos/front3_frames/IMPORTANT.txt"] {
+            std::fs::write(d.join(foreign), b"keep").unwrap();
+            let e = check_out(&d).unwrap_err().to_string();
+            assert!(e.contains(foreign.rsplit('/').next().unwrap()), "{e}");
+            std::fs::remove_file(d.join(foreign)).unwrap();
+        }
+    }
+
+    #[test]
+    fn commit_replaces_only_our_outputs() {
+        let root = tempfile::tempdir().unwrap();
+        let d = root.path().join("run");
+        std::fs::create_dir_all(d.join("videos")).unwrap();
+        std::fs::write(d.join("run.json"), format!(r#"{{"format": "{}"}}"#, crate::run::RUN_FORMAT)).unwrap();
+        std::fs::write(d.join("scenario.json"), b"old").unwrap();
+        std::fs::write(d.join("videos/old.mp4"), b"old").unwrap();
+        std::fs::write(d.join("README.txt"), b"a person's notes").unwrap();
+        let new = format!(r#"{{"format": "{}", "new": true}}"#, crate::run::RUN_FORMAT);
+        let s = StagedRun::new(&d).unwrap();
+        std::fs::write(s.path().join("run.json"), &new).unwrap();
+        s.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(d.join("run.json")).unwrap(), new);
+        assert!(!d.join("scenario.json").exists() && !d.join("videos").exists(), "no mixed outputs");
+        assert_eq!(std::fs::read(d.join("README.txt")).unwrap(), b"a person's notes");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "no staging left");
+        // Dropped without commit (a failed run), nothing changes.
+        let s = StagedRun::new(&d).unwrap();
+        std::fs::write(s.path().join("scenario.json"), b"partial").unwrap();
+        drop(s);
+        assert!(!d.join("scenario.json").exists());
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "no staging left");
+    }
+}
