@@ -39,20 +39,9 @@ fn io(path: &Path) -> impl Fn(std::io::Error) -> IngestError + '_ {
     move |e| IngestError::Io { file: path.to_path_buf(), source: e }
 }
 
-/// What `meta` says a path is, for an error ("a directory", "a FIFO (named pipe)", ...).
-pub fn kind_of(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    match () {
-        _ if t.is_file() => "a regular file",
-        _ if t.is_dir() => "a directory",
-        _ if t.is_fifo() => "a FIFO (named pipe)",
-        _ if t.is_char_device() => "a character device",
-        _ if t.is_block_device() => "a block device",
-        _ if t.is_socket() => "a socket",
-        _ => "not a regular file",
-    }
-}
+/// What `meta` says a path is, for an error ("a directory", "a FIFO (named pipe)", ...): the
+/// scene crate's, which reads scene files the same way.
+pub use scene::input::kind_of;
 
 /// What is at `path`, following symbolic links: `Ok(None)` only when nothing at all is there;
 /// an error, naming `path`, for a symbolic link that loops or leads nowhere or a path that
