@@ -73,7 +73,6 @@ pub fn compose_into(
     poses: &dyn Fn(usize) -> Option<Option<BoxPose>>,
     out: &mut Composed,
 ) {
-    let k = sh_coeffs(active_degree) * 3;
     let w = &mut out.world;
     w.sh_degree = active_degree;
     w.means.clear();
@@ -83,15 +82,8 @@ pub fn compose_into(
     w.sh.clear();
     out.parts.clear();
     if layers != Layers::ActorsOnly {
-        let bg = &model.background;
-        w.means.extend_from_slice(&bg.means);
-        w.log_scales.extend_from_slice(&bg.log_scales);
-        w.rotations.extend_from_slice(&bg.rotations);
-        w.opacity_logits.extend_from_slice(&bg.opacity_logits);
-        for i in 0..bg.len() {
-            w.sh.extend_from_slice(&bg.sh_of(i)[..k]);
-        }
-        out.parts.push(Part { actor: None, start: 0, len: bg.len(), pose: None });
+        push_background(&model.background, active_degree, w);
+        out.parts.push(Part { actor: None, start: 0, len: model.background.len(), pose: None });
     }
     if layers == Layers::BackgroundOnly {
         return;
@@ -102,6 +94,19 @@ pub fn compose_into(
         let start = w.len();
         let rot = push_actor(&actor.gaussians, &pose, active_degree, w);
         out.parts.push(Part { actor: Some(ai), start, len: actor.gaussians.len(), pose: Some((pose, rot)) });
+    }
+}
+
+/// Appends the background `bg` (already in the world) to `w`, with its first
+/// `sh_coeffs(active_degree)` SH coefficients.
+pub(crate) fn push_background(bg: &Gaussians, active_degree: usize, w: &mut Gaussians) {
+    let k = sh_coeffs(active_degree) * 3;
+    w.means.extend_from_slice(&bg.means);
+    w.log_scales.extend_from_slice(&bg.log_scales);
+    w.rotations.extend_from_slice(&bg.rotations);
+    w.opacity_logits.extend_from_slice(&bg.opacity_logits);
+    for i in 0..bg.len() {
+        w.sh.extend_from_slice(&bg.sh_of(i)[..k]);
     }
 }
 

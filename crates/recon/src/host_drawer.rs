@@ -17,13 +17,12 @@
 //! (`painter::Painter`) keeps it beside that model.
 
 use crate::backend::Backend;
-use crate::compose::{actor_pose, push_actor, Layers};
+use crate::compose::{actor_pose, push_actor, push_background, Layers};
 use crate::model::SceneModel;
 use crate::pose::BoxPose;
 use crate::view::{drawn, Drawn};
 use scene::Scene;
 use splat::render::{Image, RenderOptions};
-use splat::sh::sh_coeffs;
 use splat::Gaussians;
 
 /// The kept world set, the actors' rows and the rasterizer's context.
@@ -125,18 +124,10 @@ impl<C> HostDrawer<C> {
         match (with, self.background) {
             (true, Some(n)) => truncate(w, n),
             (true, None) => {
-                let bg = &model.background;
                 truncate(w, 0);
                 w.sh_degree = degree;
-                w.means.extend_from_slice(&bg.means);
-                w.log_scales.extend_from_slice(&bg.log_scales);
-                w.rotations.extend_from_slice(&bg.rotations);
-                w.opacity_logits.extend_from_slice(&bg.opacity_logits);
-                let k = sh_coeffs(degree) * 3;
-                for i in 0..bg.len() {
-                    w.sh.extend_from_slice(&bg.sh_of(i)[..k]);
-                }
-                self.background = Some(bg.len());
+                push_background(&model.background, degree, w);
+                self.background = Some(model.background.len());
             }
             (false, _) => {
                 truncate(w, 0);
