@@ -50,7 +50,17 @@ pub fn check_out_file(
             out.display()
         );
     }
-    if !force && !std::fs::read(out).is_ok_and(|b| ours(&b)) {
+    // Only a regular file is looked into, and only one no larger than anything we write (an
+    // executed file's budget): `--out /dev/zero` must not be read until memory runs out.
+    let regular = std::fs::metadata(out).ok().filter(|m| m.is_file());
+    if regular.is_none() && !meta.is_symlink() {
+        anyhow::bail!(
+            "--out {}: is not a regular file; expected the file to write ({what}); nothing was written",
+            out.display()
+        );
+    }
+    let small = regular.is_some_and(|m| m.len() <= scene::input::MAX_EXECUTED_BYTES);
+    if !force && !(small && std::fs::read(out).is_ok_and(|b| ours(&b))) {
         anyhow::bail!(
             "--out {}: exists and is not {what}; pass --force to replace it; nothing was written",
             out.display()
@@ -102,5 +112,13 @@ mod tests {
         check_out_file(&plan, &[], true, "a PNG image", is_png).unwrap();
         check_out_file(&d.path().join("new.png"), &[&scene], false, "a PNG image", is_png).unwrap();
         assert!(check_out_file(&scene, &[], true, "a PNG image", is_png).is_err(), "a directory");
+        // A device is refused without being read (it would never end); a link to one is not
+        // looked into either, so it needs --force.
+        let e = check_out_file(Path::new("/dev/zero"), &[], false, "a PNG image", is_png).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+        let link = d.path().join("zero.png");
+        std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+        let e = check_out_file(&link, &[], false, "a PNG image", is_png).unwrap_err();
+        assert!(e.to_string().contains("--force"), "{e}");
     }
 }
