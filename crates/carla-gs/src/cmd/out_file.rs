@@ -60,7 +60,8 @@ pub fn check_out_file(
         );
     }
     let small = regular.is_some_and(|m| m.len() <= scene::input::MAX_EXECUTED_BYTES);
-    if !force && !(small && std::fs::read(out).is_ok_and(|b| ours(&b))) {
+    let is_ours = small && std::fs::read(out).is_ok_and(|b| ours(&b));
+    if !force && !is_ours {
         anyhow::bail!(
             "--out {}: exists and is not {what}; pass --force to replace it; nothing was written",
             out.display()
