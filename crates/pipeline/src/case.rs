@@ -2,7 +2,14 @@
 //! `cases` runner) at one analysis time t0, or at each time of a search, keeping the first case
 //! that is physically valid, hits its zone and succeeds (centre TTC < 1 s); failing that, the best
 //! by (valid, zone hit, success, lower MinTTC). Every attempt is kept and reported, whatever
-//! became of it (no feasible vehicle, a failed stage, an invalid rollout).
+//! became of it (no feasible vehicle, a failed stage, an invalid rollout), with the window it was
+//! measured over.
+//!
+//! A request may name a second window (`fallback_window`), searched the same way only when no
+//! attempt over the first succeeded. The demo asks for the plan's own end first and the tables'
+//! window (`eval-cases --horizon 5 --after-plan stop`) second: on a real log a braking lead's plan
+//! ends when it stands, before the logged ego has closed in (PandaSet 002: MinTTC 1.44 s at the
+//! plan's end, 0.89 s over 5 s), while an oncoming drift hits its zone only at its plan's end.
 
 use cases::runner::{run_case, CaseConfig, CaseResult, SimulateFn, Status};
 use cases::spec::{AgentName, CaseSpec, T0Spec};
@@ -41,6 +48,10 @@ pub struct CaseRequest {
     /// the tables count.
     #[serde(default = "rendered_window")]
     pub window: cases::window::Window,
+    /// A second window, searched only when no attempt over `window` is valid, hits its zone and
+    /// succeeds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fallback_window: Option<cases::window::Window>,
 }
 
 /// One case rendered as planned: its own plan end, no continuation after it.
@@ -64,15 +75,33 @@ pub struct Attempt {
     pub success: bool,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub min_ttc_center_s: Option<f64>,
+    /// The window the attempt was executed and measured over.
+    #[serde(default = "rendered_window")]
+    pub window: cases::window::Window,
 }
 
 /// The outcome of a search: every attempt, and the chosen case when any produced one.
 pub struct Selection {
     pub attempts: Vec<Attempt>,
-    pub chosen: Option<(CaseResult, Executed)>,
+    /// The chosen case and the window it was measured over.
+    pub chosen: Option<(CaseResult, Executed, cases::window::Window)>,
 }
 
-fn attempt_of(r: &CaseResult) -> Attempt {
+/// The window in words, for reports: "the plan's own end" or "5.0 s from t0, then stop".
+pub fn window_words(w: &cases::window::Window) -> String {
+    match w.horizon {
+        cases::window::Horizon::Plan => "the plan's own end".into(),
+        cases::window::Horizon::Seconds(h) => {
+            let after = match w.after_plan {
+                cases::window::AfterPlan::Stop => "braking to rest after the plan",
+                cases::window::AfterPlan::Hold => "holding the plan's last velocity after it",
+            };
+            format!("{h:.1} s from t0, {after}")
+        }
+    }
+}
+
+fn attempt_of(r: &CaseResult, window: cases::window::Window) -> Attempt {
     let base = Attempt {
         t0_s: r.spec.t0_s,
         seed: r.spec.seed,
@@ -83,6 +112,7 @@ fn attempt_of(r: &CaseResult) -> Attempt {
         zone_hit: false,
         success: false,
         min_ttc_center_s: None,
+        window,
     };
     match &r.status {
         Status::NoFeasible { reason } => Attempt { status: "no_feasible".into(), detail: Some(reason.clone()), ..base },
@@ -157,7 +187,7 @@ pub fn select_case_with(
         T0Choice::At(t) => vec![*t],
         T0Choice::Search(spec) => spec.times(scene),
     };
-    let cfg = CaseConfig {
+    let mut cfg = CaseConfig {
         reason: ReasonOptions {
             adversary: req.adversary.clone(),
             zone: req.zone,
@@ -173,33 +203,39 @@ pub fn select_case_with(
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;
-    let tries = times.iter().flat_map(|&t| (0..req.seeds_per_t0.max(1) as u64).map(move |k| (t, k)));
-    for (t, k) in tries {
-        let spec = CaseSpec {
-            scene_index: 0,
-            scene: scene.name.clone(),
-            behavior: req.behavior,
-            t0_s: t,
-            agent: req.agent,
-            seed: req.seed.wrapping_add(k),
-        };
-        let (result, executed) = run_case(scene, &spec, &cfg, backend.as_mut().map(|b| &mut **b as &mut dyn Backend));
-        let a = attempt_of(&result);
-        let good = a.valid && a.zone_hit && a.success;
-        if let Some(e) = executed {
-            let better = chosen
-                .as_ref()
-                .is_none_or(|(i, _, _)| rank(&a).partial_cmp(&rank(&attempts[*i])).is_some_and(|o| o.is_gt()));
-            if better {
-                chosen = Some((attempts.len(), result, e));
+    let windows = std::iter::once(req.window).chain(req.fallback_window.filter(|w| *w != req.window));
+    let seeds = req.seeds_per_t0.max(1) as u64;
+    'windows: for window in windows {
+        cfg.window = window;
+        for (t, k) in times.iter().flat_map(|&t| (0..seeds).map(move |k| (t, k))) {
+            let spec = CaseSpec {
+                scene_index: 0,
+                scene: scene.name.clone(),
+                behavior: req.behavior,
+                t0_s: t,
+                agent: req.agent,
+                seed: req.seed.wrapping_add(k),
+            };
+            let (result, executed) =
+                run_case(scene, &spec, &cfg, backend.as_mut().map(|b| &mut **b as &mut dyn Backend));
+            let a = attempt_of(&result, window);
+            let good = a.valid && a.zone_hit && a.success;
+            if let Some(e) = executed {
+                let better = chosen
+                    .as_ref()
+                    .is_none_or(|(i, _, _)| rank(&a).partial_cmp(&rank(&attempts[*i])).is_some_and(|o| o.is_gt()));
+                if better {
+                    chosen = Some((attempts.len(), result, e));
+                }
+            }
+            attempts.push(a);
+            if good {
+                break 'windows;
             }
         }
-        attempts.push(a);
-        if good {
-            break;
-        }
     }
-    Selection { attempts, chosen: chosen.map(|(_, r, e)| (r, e)) }
+    let chosen = chosen.map(|(i, r, e)| (r, e, attempts[i].window));
+    Selection { attempts, chosen }
 }
 
 #[cfg(test)]

@@ -284,6 +284,8 @@ pub fn run_demo_on<B: Backend + Clone>(
             seeds_per_t0: 3,
             refine_rounds: 3,
             window: crate::case::rendered_window(),
+            // The tables' window when no case succeeds over the plan's own end (`case`).
+            fallback_window: Some(cases::window::Window::default()),
         };
         let mut key = json!({"model": train_key, "request": req, "t0": "every:0.5s", "render": render_settings});
         if !cfg.replace.is_empty() {

@@ -297,7 +297,7 @@ fn case_section(h: &mut String, name: &str, s: &RunSummary, dir: &Path, assets: 
         h,
         "<p>t0 = {:.1} s (seed {}): adversary <b>{}</b>, target zone <b>{}</b>, TTC {:.1} s, risk {:?}; chosen by {} after {} round(s) of refinement.</p>\
          <p class=small>Reasoning: {}</p>\
-         <p>Executed: <b class={}>{}</b>; Zone Hit {}, Success {}, MinTTC {:.2} s, closest {:.1} m; |a_lat|95 executed {}.</p>",
+         <p>Executed over {}: <b class={}>{}</b>; Zone Hit {}, Success {}, MinTTC {:.2} s, closest {:.1} m; |a_lat|95 executed {}.</p>",
         result.spec.t0_s,
         result.spec.seed,
         esc(&p.adversary_track),
@@ -310,6 +310,7 @@ fn case_section(h: &mut String, name: &str, s: &RunSummary, dir: &Path, assets: 
             _ => 0,
         }),
         esc(&p.reasoning),
+        esc(&crate::case::window_words(&s.window.unwrap_or(s.request.window))),
         if m.validity.valid { "ok" } else { "bad" },
         if m.validity.valid { "physically valid".to_string() } else { format!("INVALID ({})", reasons.join(", ")) },
         m.zone_hit,

@@ -168,6 +168,9 @@ pub struct RunSummary {
     /// The chosen case (every round of refinement), if any attempt produced one.
     pub result: Option<CaseResult>,
     pub metrics: Option<CaseMetrics>,
+    /// The window the chosen case was executed, measured and rendered over.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<cases::window::Window>,
     /// Why there is no case, when there is none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub no_case: Option<String>,
@@ -224,13 +227,14 @@ pub fn run_with<B: Backend>(
         attempts: selection.attempts,
         result: None,
         metrics: None,
+        window: None,
         no_case: None,
         placement: vec![],
         videos: vec![],
         files: vec![],
         timings,
     };
-    let Some((result, executed)) = selection.chosen else {
+    let Some((result, executed, window)) = selection.chosen else {
         summary.no_case = Some(if summary.attempts.is_empty() {
             format!(
                 "no t0 to try: the log is {:.2} s long and every t0 searched needs {} s of log after it",
@@ -285,6 +289,7 @@ pub fn run_with<B: Backend>(
     summary.timings.push(Timing { stage: "render videos".into(), seconds: clock.elapsed().as_secs_f64() });
     summary.result = Some(result);
     summary.metrics = Some(best.metrics);
+    summary.window = Some(window);
     summary.placement = placement;
     summary.videos = videos;
     summary.files = files;

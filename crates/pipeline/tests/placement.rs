@@ -74,9 +74,10 @@ fn the_adversary_is_drawn_at_its_executed_pose() {
         seeds_per_t0: 1,
         refine_rounds: 0,
         window: pipeline::case::rendered_window(),
+        fallback_window: None,
     };
     let sel = select_case(&scene, &req, &T0Choice::Search(T0Spec::Every(0.5)), None);
-    let (result, executed) = sel.chosen.expect("a sudden-braking case on the synthetic street");
+    let (result, executed, _) = sel.chosen.expect("a sudden-braking case on the synthetic street");
     assert!(result.best().unwrap().metrics.validity.valid, "the case is physically valid");
     let adversary = Backprojection::new(&scene, &executed).unwrap();
     let times = check_times(&scene, &adversary, executed.plan.start_time_s, 5);
@@ -133,6 +134,7 @@ fn run_writes_a_replayable_case() {
         seeds_per_t0: 1,
         refine_rounds: 0,
         window: pipeline::case::rendered_window(),
+        fallback_window: None,
     };
     let s = pipeline::run::run(&inputs, &req, &T0Choice::At(0.5), None, &indicatif::ProgressBar::hidden()).unwrap();
     let plan = &s.result.as_ref().expect("a case").best().unwrap().plan;
@@ -178,6 +180,7 @@ fn run_refuses_bad_settings_and_foreign_outputs_before_any_work() {
         seeds_per_t0: 1,
         refine_rounds: 0,
         window: pipeline::case::rendered_window(),
+        fallback_window: None,
     };
     let bar = indicatif::ProgressBar::hidden();
     let good = pipeline::run::RenderSettings {

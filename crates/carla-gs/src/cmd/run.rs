@@ -152,6 +152,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
             horizon: a.horizon.parse().map_err(|e: String| anyhow::anyhow!("--horizon: {e}"))?,
             after_plan: a.after_plan.parse().map_err(|e: String| anyhow::anyhow!("--after-plan: {e}"))?,
         },
+        fallback_window: None,
     };
     let mut llm = match agent {
         AgentName::Local => Some(a.llm.local()?),
