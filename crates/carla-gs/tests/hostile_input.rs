@@ -166,7 +166,7 @@ fn render_refuses_bad_scales_sizes_shifts_and_scenes() {
     refused(render(&scene, &["--shift-m", "NaN"]), "--shift-m must be a finite number");
     let other = s40(tmp.path(), "other");
     edit_scene(&other, |j| j["name"] = "another street".into());
-    refused(render(&other, &[]), "the model was trained on scene");
+    refused(render(&other, &[]), "the model was trained on another scene");
     assert!(!png.exists());
     ok(render(&scene, &["--scale", "0.5", "--shift-m", "0.5"]));
     assert_eq!(image::open(&png).unwrap().width(), 16);

@@ -9,7 +9,8 @@
 //! <model>/config.toml         the effective training config (a resumed run must match it)
 //! <model>/checkpoint.bin      the full training state (`checkpoint`)
 //! ```
-//! Every file is written to a temporary name and renamed.
+//! Every file is written to a temporary name and renamed. Every record read back goes through
+//! [`check`] (files inside the folder, unique tracks, a valid scale; the scene trained on).
 
 use crate::config::TrainConfig;
 use crate::error::ReconError;
@@ -19,6 +20,8 @@ use crate::model::{Actor, SceneModel};
 use crate::sky::Sky;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+pub mod check;
 
 pub const MODEL_FORMAT: &str = "carla-gs-model/1";
 
@@ -123,8 +126,8 @@ pub fn write_model(
     Ok(())
 }
 
-/// Reads a model directory back.
-pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
+/// Reads and checks `<dir>/model.json` ([`check::check_record`]).
+fn read_record(dir: &Path) -> Result<ModelRecord, ReconError> {
     let file = dir.join("model.json");
     let record: ModelRecord = scene::format::read_json(&file)?;
     if record.format != MODEL_FORMAT {
@@ -133,6 +136,12 @@ pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
             detail: format!("format {:?}, expected {MODEL_FORMAT:?}", record.format),
         });
     }
+    check::check_record(dir, &record)?;
+    Ok(record)
+}
+
+/// The files a checked record names.
+fn read_files(dir: &Path, record: ModelRecord) -> Result<(SceneModel, ModelRecord), ReconError> {
     let bg_path = dir.join(&record.background_file);
     let background = splat::ply::read_ply(&bg_path).map_err(ply_err(&bg_path))?;
     let mut actors = Vec::new();
@@ -143,6 +152,25 @@ pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
     }
     let texels = read_sky(&dir.join("sky.f32"), record.sky_res)?;
     Ok((SceneModel { background, actors, sky: Sky { res: record.sky_res, texels } }, record))
+}
+
+/// Reads a model directory back (every loader of a model goes through this or
+/// [`load_model_for_scene`]; both refuse what [`check::check_record`] refuses).
+pub fn load_model(dir: &Path) -> Result<(SceneModel, ModelRecord), ReconError> {
+    read_files(dir, read_record(dir)?)
+}
+
+/// Reads a model directory back for `scene` (read from `scene_dir`), also refusing a model trained
+/// on another scene ([`check::check_scene`]). Commands that take a scene and a model should load
+/// through this.
+pub fn load_model_for_scene(
+    dir: &Path,
+    scene_dir: &Path,
+    scene: &scene::Scene,
+) -> Result<(SceneModel, ModelRecord), ReconError> {
+    let record = read_record(dir)?;
+    check::check_scene(dir, &record, scene_dir, scene)?;
+    read_files(dir, record)
 }
 
 /// The sky texels of `sky.f32` at face resolution `res`: a regular file of exactly `6 x res x res x

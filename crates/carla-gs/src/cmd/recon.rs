@@ -254,17 +254,10 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     if let Some(s) = a.scale {
         render::budget::check_scale("--scale", s)?;
     }
-    let (model, record) = recon::model_io::load_model(&a.model)?;
+    let scene = scene::load_scene(&a.scene)?;
+    let (model, record) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
     let scale = a.scale.unwrap_or(record.scale);
     render::budget::check_scale(&format!("{}: scale", a.model.join("model.json").display()), scale)?;
-    let scene = scene::load_scene(&a.scene)?;
-    anyhow::ensure!(
-        record.scene_name == scene.name,
-        "--scene {}: the model was trained on scene {:?}, not {:?}",
-        a.scene.display(),
-        record.scene_name,
-        scene.name
-    );
     let frame = scene
         .frames
         .get(a.frame)

@@ -100,7 +100,7 @@ pub struct RunArgs {
 
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let scene = scene::load_scene(&a.scene)?;
-    let (mut model, _) = recon::model_io::load_model(&a.model)?;
+    let (mut model, _) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
     a.replace.apply(&mut model, &a.scene)?;
     let agent: AgentName = a.agent.parse().map_err(anyhow::Error::msg)?;
     let behavior =
@@ -270,7 +270,7 @@ pub fn video(a: VideoCmdArgs) -> anyhow::Result<()> {
     let png = a.video.png || render::encode::find_ffmpeg().is_none();
     render::clip_out::check_clip_out(&a.out, png, a.force)?;
     let scene = scene::load_scene(&a.scene)?;
-    let (model, _) = recon::model_io::load_model(&a.model)?;
+    let (model, _) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
     let executed = scene::executed::load_executed(&a.executed)?;
     let settings = a.video.settings();
     let layouts = settings.resolved_layouts(&scene)?;

@@ -1,5 +1,7 @@
 //! `priors/priors.json` (format `carla-gs-priors/1`) and reading the maps back for the trainer:
 //! [`PriorIndex::load`] parses the index, [`PriorIndex::maps`] decodes one image's files.
+//! Every file an entry names must be a plain file name inside `priors/` ([`check_file_name`]): an
+//! index is input, and `../x` or `/x` would read files anywhere.
 
 use super::error::PriorError;
 use super::ground::Plane;
@@ -53,6 +55,30 @@ pub fn check_normals(path: &Path, normal: &[[f32; 3]]) -> Result<(), PriorError>
             format!("pixel {i}: normal {:?}, expected a unit vector (or [0, 0, 0] for none)", normal[i]),
         )),
     }
+}
+
+/// A prior file name is one plain name inside `priors/`: not empty, no `/` or `\\`, not `.` or
+/// `..`, no NUL.
+pub fn check_file_name(name: &str) -> Result<(), String> {
+    if name.is_empty() || name == "." || name == ".." || name.contains(['/', '\\', '\0']) {
+        return Err(format!("expected a plain file name inside {PRIORS_DIR}/ (no directory, `..` or absolute path)"));
+    }
+    Ok(())
+}
+
+/// `dir/name` for a checked plain `name`, refused when a symbolic link leads it out of `dir`
+/// (a missing file is left to its reader, which names it).
+fn inside(dir: &Path, name: &str) -> Result<std::path::PathBuf, PriorError> {
+    let path = dir.join(name);
+    if let (Ok(root), Ok(real)) = (dir.canonicalize(), path.canonicalize()) {
+        if !real.starts_with(&root) {
+            return Err(PriorError::invalid(
+                &path,
+                format!("leads to {} through a symbolic link, outside {}", real.display(), root.display()),
+            ));
+        }
+    }
+    Ok(path)
 }
 
 /// File names (relative to `priors/`) of one image's maps.
@@ -143,7 +169,37 @@ impl PriorIndex {
                 format!("format is \"{}\", expected \"{PRIORS_FORMAT}\"", index.format),
             ));
         }
+        index.check_file_names(&file)?;
         Ok(index)
+    }
+
+    /// Every file name of every entry is a plain name inside `priors/`; the error names the entry
+    /// (`images[3]` of frame and camera) and the field.
+    fn check_file_names(&self, file: &Path) -> Result<(), PriorError> {
+        for (i, e) in self.images.iter().enumerate() {
+            let f = &e.files;
+            let fields = [
+                ("depth", &f.depth),
+                ("normal", &f.normal),
+                ("ground", &f.ground),
+                ("object", &f.object),
+                ("mask", &f.mask),
+                ("depth_png", &f.depth_png),
+                ("normal_png", &f.normal_png),
+            ];
+            for (field, name) in fields {
+                check_file_name(name).map_err(|why| {
+                    PriorError::invalid(
+                        file,
+                        format!(
+                            "images[{i}] (frame {}, camera {}): `files.{field}` is {name:?}: {why}",
+                            e.frame, e.camera
+                        ),
+                    )
+                })?;
+            }
+        }
+        Ok(())
     }
 
     pub fn entry(&self, frame: usize, camera: &str) -> Option<&PriorEntry> {
@@ -161,14 +217,14 @@ impl PriorIndex {
                 format!("image {frame} {camera}: {}x{} pixels, at most {MAX_PIXELS}", e.width, e.height),
             )
         })?;
-        let depth_path = dir.join(&e.files.depth);
+        let depth_path = inside(&dir, &e.files.depth)?;
         let depth = read_gz_f32(&depth_path, n)?;
         check_depth(&depth_path, &depth)?;
-        let normal_path = dir.join(&e.files.normal);
+        let normal_path = inside(&dir, &e.files.normal)?;
         let normal: Vec<[f32; 3]> =
             read_gz_f32(&normal_path, 3 * n)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         check_normals(&normal_path, &normal)?;
-        let mask = |f: &str| read_mask_png(&dir.join(f), e.width, e.height);
+        let mask = |f: &str| read_mask_png(&inside(&dir, f)?, e.width, e.height);
         Ok(Some(PriorMaps {
             width: e.width,
             height: e.height,
