@@ -23,7 +23,8 @@
 //! behaviors = ["sudden_cut_in"]
 //! ```
 //!
-//! Every count read here (logs, shards, behaviours, resources) is checked against a budget.
+//! Every count read here (logs, shards, behaviours, resources) is checked against a budget
+//! (shards: `super::budget`).
 
 use super::BatchError;
 use serde::Deserialize;
@@ -216,8 +217,15 @@ impl Manifest {
         if let Some(e) = &self.eval_cases {
             check_resources(file, "eval_cases", &e.resources)?;
             let n = e.shards.unwrap_or(1);
-            if n == 0 || n > cases::shard::MAX_SHARDS {
-                return Err(bad(format!("[eval_cases] shards = {n}: expected 1 to {}", cases::shard::MAX_SHARDS)));
+            let most = super::budget::max_shards(self.logs.len()).min(cases::shard::MAX_SHARDS);
+            if n == 0 || n > most {
+                return Err(bad(format!(
+                    "[eval_cases] shards = {n}: expected 1 to {most} for {} log(s) (at most {} per log and {} in \
+                     all; more shards than attempts are empty nodes)",
+                    self.logs.len(),
+                    super::budget::MAX_SHARDS_PER_LOG,
+                    super::budget::MAX_PLAN_SHARDS
+                )));
             }
         }
         if let Some(r) = &self.run {

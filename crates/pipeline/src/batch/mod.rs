@@ -1,5 +1,6 @@
 //! Batch runs over many logs on an existing cluster engine (Ray, Slurm): the Rust side only
 //! turns a manifest into an engine-neutral plan and runs one node of it, idempotently.
+//! * [`budget`]: how many shards and nodes, and how large, a plan may be;
 //! * [`manifest`]: the TOML a user writes (logs to ingest, which stages to run and how);
 //! * [`plan`]: the JSON graph of plain `carla-gs` commands with their inputs, outputs,
 //!   dependencies and resources (CPU cores, GPUs, memory) that `tools/batch_ray.py` (one Ray
@@ -9,6 +10,7 @@
 //!
 //! No scheduler lives here: order, placement and retries are the engine's.
 
+pub mod budget;
 pub mod manifest;
 pub mod node;
 pub mod plan;

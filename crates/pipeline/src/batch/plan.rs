@@ -13,7 +13,9 @@
 //! | `run` | one per log and behaviour | `run <scene> --model <model> --behavior B --out <out>/runs/<log>/<B>` | its train |
 //!
 //! CPU nodes get `RAYON_NUM_THREADS` = their cores, so packed workers do not oversubscribe.
+//! The node count, each node and the plan's size are held to `super::budget` as the plan is made.
 
+use super::budget::{argv_bytes, Sizer};
 use super::manifest::{Manifest, Resources as Asked};
 use super::BatchError;
 use serde::{Deserialize, Serialize};
@@ -85,6 +87,7 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
     let manifest_file = abs(manifest_file)?;
     let base = manifest_file.parent().unwrap_or(Path::new("/")).to_path_buf();
     let out = abs(out)?;
+    let mut sizer = Sizer::new(&manifest_file, node_count(manifest))?;
     let mut nodes: Vec<Node> = Vec::new();
     let mut stages = Vec::new();
     // Each log's scene directory and the node (if any) that makes it.
@@ -104,17 +107,21 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
                 }
                 let r = Resources { cpus: 1, gpus: 0, memory_gb: 4.0 };
                 let id = format!("ingest/{}", l.name);
-                ingest.push(Node {
-                    id: id.clone(),
-                    stage: "ingest".into(),
-                    index: ingest.len(),
-                    args,
-                    env: cpu_env(&r),
-                    inputs,
-                    outputs: vec![dir.clone()],
-                    deps: vec![],
-                    resources: r,
-                });
+                let index = ingest.len();
+                sizer.push(
+                    &mut ingest,
+                    Node {
+                        id: id.clone(),
+                        stage: "ingest".into(),
+                        index,
+                        args,
+                        env: cpu_env(&r),
+                        inputs,
+                        outputs: vec![dir.clone()],
+                        deps: vec![],
+                        resources: r,
+                    },
+                )?;
                 scenes.push((l.name.clone(), dir, Some(id)));
             }
         }
@@ -135,17 +142,20 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
             let mut args = vec!["priors".to_string(), s(dir), "--force".into()];
             args.extend(p.args.iter().cloned());
             let id = format!("priors/{name}");
-            v.push(Node {
-                id: id.clone(),
-                stage: "priors".into(),
-                index: k,
-                args,
-                env: cpu_env(&r),
-                inputs: vec![dir.join(scene::format::SCENE_FILE)],
-                outputs: vec![dir.join("priors")],
-                deps: last[k].clone(),
-                resources: r,
-            });
+            sizer.push(
+                &mut v,
+                Node {
+                    id: id.clone(),
+                    stage: "priors".into(),
+                    index: k,
+                    args,
+                    env: cpu_env(&r),
+                    inputs: vec![dir.join(scene::format::SCENE_FILE)],
+                    outputs: vec![dir.join("priors")],
+                    deps: last[k].clone(),
+                    resources: r,
+                },
+            )?;
             last[k] = vec![id];
         }
         push_stage("priors", v, &mut nodes);
@@ -176,17 +186,20 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
             let mut inputs = vec![dir.clone()];
             inputs.extend(t.config.iter().map(|c| Manifest::resolve(&base, c)));
             let id = format!("train/{name}");
-            v.push(Node {
-                id: id.clone(),
-                stage: "train".into(),
-                index: k,
-                args,
-                env: if gpu { BTreeMap::new() } else { cpu_env(&r) },
-                inputs,
-                outputs: vec![model.clone()],
-                deps: last[k].clone(),
-                resources: r,
-            });
+            sizer.push(
+                &mut v,
+                Node {
+                    id: id.clone(),
+                    stage: "train".into(),
+                    index: k,
+                    args,
+                    env: if gpu { BTreeMap::new() } else { cpu_env(&r) },
+                    inputs,
+                    outputs: vec![model.clone()],
+                    deps: last[k].clone(),
+                    resources: r,
+                },
+            )?;
             models.push((model, id));
         }
         push_stage("train", v, &mut nodes);
@@ -213,20 +226,23 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
                 args.extend(["--seed".into(), x.to_string()]);
             }
             args.extend(e.args.iter().cloned());
-            v.push(Node {
-                id: format!("eval_cases/{i}-of-{n}"),
-                stage: "eval_cases".into(),
-                index: i,
-                args,
-                env: cpu_env(&r),
-                inputs: scenes.iter().map(|(_, d, _)| d.join(scene::format::SCENE_FILE)).collect(),
-                outputs: vec![dir.join(format!("shard-{i}-of-{n}.json"))],
-                deps: all_deps.clone(),
-                resources: r,
-            });
+            sizer.push(
+                &mut v,
+                Node {
+                    id: format!("eval_cases/{i}-of-{n}"),
+                    stage: "eval_cases".into(),
+                    index: i,
+                    args,
+                    env: cpu_env(&r),
+                    inputs: scenes.iter().map(|(_, d, _)| d.join(scene::format::SCENE_FILE)).collect(),
+                    outputs: vec![dir.join(format!("shard-{i}-of-{n}.json"))],
+                    deps: all_deps.clone(),
+                    resources: r,
+                },
+            )?;
             dirs.push(dir);
         }
-        let argv: usize = v.first().map_or(0, |x| x.args.iter().map(|a| a.len() + 1).sum());
+        let argv: usize = v.first().map_or(0, |x| argv_bytes(&x.args));
         if argv > MAX_ARGV_BYTES {
             return Err(BatchError::invalid(
                 &manifest_file,
@@ -242,6 +258,16 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
         let mut args = vec!["tables".to_string()];
         args.extend(dirs.iter().map(|d| s(d)));
         args.extend(["--out".into(), s(&tables)]);
+        if argv_bytes(&args) > MAX_ARGV_BYTES {
+            return Err(BatchError::invalid(
+                &manifest_file,
+                format!(
+                    "[eval_cases]: the tables command line would be {} bytes (every shard directory is an argument); \
+                     at most {MAX_ARGV_BYTES} fit: ask for fewer shards or a shorter --out",
+                    argv_bytes(&args)
+                ),
+            ));
+        }
         let r = Resources { cpus: 1, gpus: 0, memory_gb: 4.0 };
         let node = Node {
             id: "tables".into(),
@@ -254,7 +280,9 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
             deps: shard_ids,
             resources: r,
         };
-        push_stage("tables", vec![node], &mut nodes);
+        let mut t = Vec::new();
+        sizer.push(&mut t, node)?;
+        push_stage("tables", t, &mut nodes);
     }
     if let Some(run) = &manifest.run {
         let mut v = Vec::new();
@@ -273,20 +301,35 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
                     args.extend(["--seed".into(), x.to_string()]);
                 }
                 args.extend(run.args.iter().cloned());
-                v.push(Node {
-                    id: format!("run/{name}/{b}"),
-                    stage: "run".into(),
-                    index: v.len(),
-                    args,
-                    env: if r.gpus > 0 { BTreeMap::new() } else { cpu_env(&r) },
-                    inputs: vec![dir.join(scene::format::SCENE_FILE), model.clone()],
-                    outputs: vec![case],
-                    deps: vec![train_id.clone()],
-                    resources: r,
-                });
+                let index = v.len();
+                sizer.push(
+                    &mut v,
+                    Node {
+                        id: format!("run/{name}/{b}"),
+                        stage: "run".into(),
+                        index,
+                        args,
+                        env: if r.gpus > 0 { BTreeMap::new() } else { cpu_env(&r) },
+                        inputs: vec![dir.join(scene::format::SCENE_FILE), model.clone()],
+                        outputs: vec![case],
+                        deps: vec![train_id.clone()],
+                        resources: r,
+                    },
+                )?;
             }
         }
         push_stage("run", v, &mut nodes);
     }
     Ok(Plan { format: PLAN_FORMAT.into(), version: PLAN_VERSION, manifest: manifest_file, out, stages, nodes })
+}
+
+/// The nodes `manifest` makes, counted before any is: ingest, priors and train per log, the
+/// shards and their tables node, a run per log and behaviour.
+fn node_count(m: &Manifest) -> usize {
+    let logs = m.logs.len();
+    let ingest = m.logs.iter().filter(|l| l.scene.is_none()).count();
+    let per_log = usize::from(m.priors.is_some()) + usize::from(m.train.is_some());
+    let shards = m.eval_cases.as_ref().map_or(0, |e| e.shards.unwrap_or(1).saturating_add(1));
+    let runs = m.run.as_ref().map_or(0, |r| logs.saturating_mul(r.behaviors.len()));
+    ingest.saturating_add(logs.saturating_mul(per_log)).saturating_add(shards).saturating_add(runs)
 }
