@@ -12,14 +12,19 @@ use crate::model_io::load_config;
 use scene::Scene;
 use std::path::Path;
 
+/// The fingerprint of `<scene_dir>/scene.json` a checkpoint records (CRC-32C of its bytes).
+pub fn scene_fingerprint(scene_dir: &Path) -> Result<String, ReconError> {
+    let file = scene_dir.join(scene::format::SCENE_FILE);
+    let bytes = scene::input::read_capped(&file, scene::input::MAX_SCENE_JSON_BYTES, "a scene.json")?;
+    Ok(format!("{:08x}", crc32c::crc32c(&bytes)))
+}
+
 /// The identity of a run on `scene` (in `scene_dir`) with `cfg`.
 pub fn identity(scene_dir: &Path, scene: &Scene, cfg: &TrainConfig) -> Result<RunIdentity, ReconError> {
-    let file = scene_dir.join(scene::format::SCENE_FILE);
-    let bytes = std::fs::read(&file).map_err(crate::error::io(&file))?;
     let toml = toml::to_string(cfg).map_err(|e| ReconError::Config(e.to_string()))?;
     Ok(RunIdentity {
         scene_name: scene.name.clone(),
-        scene_fingerprint: format!("{:08x}", crc32c::crc32c(&bytes)),
+        scene_fingerprint: scene_fingerprint(scene_dir)?,
         config_fingerprint: format!("{:08x}", crc32c::crc32c(toml.as_bytes())),
     })
 }

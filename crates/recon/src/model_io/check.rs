@@ -177,8 +177,7 @@ pub fn check_scene(dir: &Path, record: &ModelRecord, scene_dir: &Path, scene: &S
     }
     if let Some(fp) = checkpoint_fingerprint(dir) {
         let file = scene_dir.join(scene::format::SCENE_FILE);
-        let bytes = scene::input::read_capped(&file, scene::input::MAX_SCENE_JSON_BYTES, "a scene.json")?;
-        let now = format!("{:08x}", crc32c::crc32c(&bytes));
+        let now = crate::resume::scene_fingerprint(scene_dir)?;
         if now != fp {
             return Err(ReconError::Format {
                 file: dir.join("checkpoint.bin"),
