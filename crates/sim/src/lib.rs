@@ -7,12 +7,14 @@
 //! validity (`validity`). No CARLA server is needed; users who have one can run the same plans in
 //! CARLA 0.9.16 through a bridge process (`carla`), with the same control law and output.
 //! Pedestrians and cyclists are not cars: they move by their class's model and limits (`vru`).
-//! Step counts and rates are checked against `budget` before a rollout starts.
+//! Step counts and rates are checked against `budget` before a rollout starts, every field of
+//! the configuration against a plausible range (`config_check`) when it is read and again then.
 
 pub mod actuation;
 pub mod budget;
 pub mod carla;
 pub mod collision;
+pub mod config_check;
 pub mod error;
 pub mod model;
 pub mod params;

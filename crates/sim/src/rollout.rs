@@ -26,7 +26,10 @@ use scene::motion::{resample, sample_series, Pose2};
 use scene::{Executed, Plan, Scene};
 use serde::{Deserialize, Serialize};
 
+/// Deserialised through [`RolloutConfigFile`] and checked by [`RolloutConfig::validate`]
+/// (`config_check`): a configuration with an implausible field is refused when it is read.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RolloutConfigFile")]
 pub struct RolloutConfig {
     pub tracker: TrackerConfig,
     pub vehicle: VehicleParams,
@@ -39,6 +42,30 @@ pub struct RolloutConfig {
     /// When a rollout counts as physically valid.
     #[serde(default)]
     pub validity: ValidityConfig,
+}
+
+/// A [`RolloutConfig`] as read, before its ranges are checked.
+#[derive(Deserialize)]
+struct RolloutConfigFile {
+    tracker: TrackerConfig,
+    vehicle: VehicleParams,
+    actuation: ActuationParams,
+    resample_hz: Vec<f64>,
+    #[serde(default)]
+    smoothing: SmoothingConfig,
+    #[serde(default)]
+    validity: ValidityConfig,
+}
+
+impl TryFrom<RolloutConfigFile> for RolloutConfig {
+    type Error = SimError;
+
+    fn try_from(f: RolloutConfigFile) -> Result<Self, SimError> {
+        let RolloutConfigFile { tracker, vehicle, actuation, resample_hz, smoothing, validity } = f;
+        let c = RolloutConfig { tracker, vehicle, actuation, resample_hz, smoothing, validity };
+        c.validate()?;
+        Ok(c)
+    }
 }
 
 impl Default for RolloutConfig {
@@ -81,6 +108,8 @@ pub struct Prepared<'a> {
 /// prepares a rollout of it.
 pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Prepared<'a>, SimError> {
     plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
+    // Every field's range before any work (the smoothing below runs `smoothing.iterations`).
+    cfg.validate()?;
     if plan.scene != scene.name {
         return Err(SimError::WrongScene { plan: plan.scene.clone(), scene: scene.name.clone() });
     }
@@ -117,6 +146,14 @@ pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result
     let p0 = reference.position(t_start);
     let initial = [p0.x, p0.y, 0.0, start.speed, start.heading, 0.0, 0.0];
     let size = adversary.median_size_lwh();
+    // The boxes written into the executed file must be ones its readers accept.
+    let (lo, hi) = (scene::executed_check::MIN_BOX_M, scene::executed_check::MAX_BOX_M);
+    for (who, lwh) in [("adversary_track", size), ("scene ego.size_lwh", scene.ego.size_lwh)] {
+        if lwh.iter().any(|v| !(lo..=hi).contains(v)) {
+            let message = format!("box {lwh:?} m: every side must be from {lo} to {hi} m");
+            return Err(SimError::Plan { field: who.into(), message });
+        }
+    }
     let actors = replayed_actors(scene, &adversary.id);
     Ok(Prepared { adversary, t0, t_end, t_start, reference, initial, size, actors })
 }

@@ -95,9 +95,15 @@ pub enum TrackError {
     Config(String),
 }
 
-/// Number of control steps from `t_start` to `t_end` (the last one may be shorter).
+/// A last control step shorter than this fraction of the period is not taken.
+pub const MIN_LAST_STEP: f64 = 1e-3;
+
+/// Number of control steps from `t_start` to `t_end` (the last one may be shorter, but not
+/// shorter than [`MIN_LAST_STEP`] of a period). On a Unix-time clock (PandaSet: 1.5e9 s) the span
+/// carries rounding errors of 1e-7 s; a tolerance of 1e-9 steps added a step of no length whose
+/// time equalled the one before, which no reader of the executed file accepts.
 pub fn control_steps(t_start: f64, t_end: f64, control_dt_s: f64) -> usize {
-    ((t_end - t_start) / control_dt_s - 1e-9).ceil().max(0.0) as usize
+    ((t_end - t_start) / control_dt_s - MIN_LAST_STEP).ceil().max(0.0) as usize
 }
 
 /// The control law of every backend: each control period, the target speed and the look-ahead
@@ -247,6 +253,19 @@ mod tests {
         let last = rec.last().unwrap();
         let err = (DVec2::new(last.state[0], last.state[1]) - last.reference).length();
         assert!(err < 1.5, "end error {err} m");
+    }
+
+    #[test]
+    fn no_empty_last_step_on_a_unix_time_clock() {
+        // PandaSet 002's clock: t0 + 0.2 s computed in f64 is 0.20000004768371582 s after t0, a
+        // hair past 4 control periods.
+        let t0 = 1557539958.000022;
+        assert_eq!(control_steps(t0, t0 + 0.2, 0.05), 4);
+        let r = Reference::new((0..=2).map(|i| (t0 + i as f64 * 0.1, DVec2::new(i as f64, 0.0))).collect()).unwrap();
+        let rec = tracker_run(&r, 10.0, 0.0);
+        assert!(rec.windows(2).all(|w| w[1].t > w[0].t), "times must increase strictly");
+        assert_eq!(control_steps(0.0, 1.0, 0.3), 4);
+        assert_eq!(control_steps(0.0, 0.9, 0.3), 3);
     }
 
     #[test]

@@ -157,3 +157,21 @@ fn a_cyclist_swerves_within_a_cyclists_limits() {
     let last = e.steps.last().unwrap();
     assert!(last.y > -0.5 && e.validity.max_tracking_error_m < 0.5, "ends at y {}: {:?}", last.y, e.validity);
 }
+
+/// Fuzzing: an adversary whose logged box no reader of the executed format accepts (0 m, or a
+/// scene ego of 1e6 m) is refused before the rollout instead of writing a file that cannot be
+/// read back.
+#[test]
+fn boxes_the_executed_format_refuses_are_refused_before_the_rollout() {
+    let p = plan("ped", Behavior::StepOut, 3.0, |t| DVec2::new(40.0, -6.0 + 3.5 * min_jerk(t / 3.0)));
+    let mut s = street();
+    for st in &mut s.tracks[0].states {
+        st.size_lwh = [0.0, 0.0, 0.0];
+    }
+    let e = simulate(&s, &p, &RolloutConfig::default()).unwrap_err().to_string();
+    assert!(e.contains("`adversary_track`") && e.contains("from 0.05 to 60 m"), "{e}");
+    let mut s = street();
+    s.ego.size_lwh = [1e6, 2.0, 1.6];
+    let e = simulate(&s, &p, &RolloutConfig::default()).unwrap_err().to_string();
+    assert!(e.contains("ego.size_lwh") && e.contains("from 0.05 to 60 m"), "{e}");
+}
