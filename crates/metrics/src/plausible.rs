@@ -3,7 +3,9 @@
 //! no road user reaches, no step moving faster than [`MAX_SPEED_MPS`] from the one before, a
 //! measured interval of at most [`MAX_INTERVAL_S`] (the grid is allocated from it), and the
 //! stored validity summary (`max_tracking_error_m`, `max_abs_accel_lat`) equal to what the steps
-//! give. Each refusal names the field (`steps[30].x`) and what was expected.
+//! give; and first what every reader of the format checks (`scene::executed_check`: box sizes,
+//! periods, counts, resampled series), since a case may be measured without being read.
+//! Each refusal names the field (`steps[30].x`) and what was expected.
 
 use crate::case::MetricsError;
 use scene::Executed;
@@ -79,6 +81,9 @@ fn same(field: &str, stored: f64, recomputed: f64, unit: &str) -> Result<(), Met
 
 /// Checks the executed file's values and stored validity against its steps (module doc).
 pub fn check(e: &Executed) -> Result<(), MetricsError> {
+    // What every reader of the format checks (sizes, periods, counts, finite values), also for a
+    // case built in memory rather than read through `load_executed`.
+    scene::executed_check::check_values(e).map_err(|(field, message)| refuse(field, message))?;
     let (t0, t1) = (e.plan.start_time_s, e.plan.end_time_s());
     if !(..=MAX_INTERVAL_S).contains(&(t1 - t0)) {
         let message = format!("the plan spans {:.1} s, longer than the {MAX_INTERVAL_S} s measured", t1 - t0);

@@ -171,8 +171,10 @@ fn refusal(e: &Executed) -> String {
     }
 }
 
-/// Issue 28 row 18: x = 1e300 (finite, so the file loads) is refused with the step and field
-/// named, not measured as "MinTTC 0 s -> success true" at an infinite distance.
+/// Issue 28 row 18: x = 1e300 is refused with the step and field named, not measured as
+/// "MinTTC 0 s -> success true" at an infinite distance; since the fuzzing round of
+/// `scene::executed_check` the file no longer loads either (it used to: only finiteness was
+/// checked on read).
 #[test]
 fn absurd_coordinates_are_refused() {
     assert!(metrics::evaluate(&success_case()).unwrap().success_box);
@@ -180,7 +182,8 @@ fn absurd_coordinates_are_refused() {
     for s in &mut e.steps {
         s.x = 1e300;
     }
-    e.validate().unwrap();
+    let (field, message) = e.validate().unwrap_err();
+    assert!(field == "steps[0].x" && message.starts_with("1e300 m is not finite or beyond"), "{field}: {message}");
     let why = refusal(&e);
     assert!(why.starts_with("steps[0].x: 1e300 m is not finite or beyond"), "{why}");
     let mut e = success_case();
@@ -212,4 +215,19 @@ fn jumps_and_contradicted_validity_are_refused() {
     let mut e = success_case();
     e.validity.friction_limit_s = -1.0;
     assert!(refusal(&e).starts_with("validity.friction_limit_s"));
+}
+
+/// Fuzzing: an executed case with absurd box sizes or periods (built in memory, so never read
+/// through `load_executed`) is refused by `evaluate`, not scored "valid".
+#[test]
+fn absurd_sizes_and_periods_are_refused_in_memory_too() {
+    let mut e = success_case();
+    e.adversary.size_lwh = [1e6, 1e6, 1e6];
+    assert!(refusal(&e).starts_with("adversary.size_lwh[0]: must be from"));
+    let mut e = success_case();
+    e.ego.size_lwh[0] = 0.0;
+    assert!(refusal(&e).starts_with("ego.size_lwh[0]: must be from"));
+    let mut e = success_case();
+    e.control_dt_s = 1e-300;
+    assert!(refusal(&e).starts_with("control_dt_s: must be from"));
 }

@@ -51,7 +51,7 @@ fn case_stills<B: Backend>(
     case_dir: &Path,
     dir: &Path,
 ) -> Result<Option<CaseStill>, PipelineError> {
-    let executed: scene::Executed = scene::format::read_json(&case_dir.join("executed.json"))?;
+    let executed = scene::executed::load_executed(&case_dir.join("executed.json"))?;
     let adversary = render::backproject::Backprojection::new(scene, &executed)?;
     let t = adversary.executed_span().1;
     let Some(pose) = adversary.pose_at(scene, t) else { return Ok(None) };

@@ -130,7 +130,8 @@ impl Executed {
         self.steps.iter().map(|s| Pose2 { t: s.t, x: s.x, y: s.y, heading: s.heading }).collect()
     }
 
-    /// Validates what metrics rely on: version, equal-length finite series with increasing time.
+    /// Validates what metrics rely on: version, equal-length finite series with increasing time,
+    /// and physically plausible sizes, periods and values ([`crate::executed_check`]).
     pub fn validate(&self) -> Result<(), (String, String)> {
         if self.format != EXECUTED_FORMAT {
             return Err(("format".into(), format!("expected \"{EXECUTED_FORMAT}\", got \"{}\"", self.format)));
@@ -160,7 +161,8 @@ impl Executed {
                 return Err((format!("steps[{i}].t"), "times must increase strictly".into()));
             }
         }
-        Ok(())
+        // Sizes, periods, counts and plausible values of every record.
+        crate::executed_check::check_values(self)
     }
 }
 

@@ -15,6 +15,9 @@
 //! | plan (`load_plan`) | [`MAX_PLAN_BYTES`] 64 MiB | ~95 bytes a waypoint, at most 100,000 waypoints (`reason`): ~10 MB |
 //! | executed (`load_executed`) | [`MAX_EXECUTED_BYTES`] 512 MiB | ~700 bytes a control step, at most 200,000 steps (`sim`): ~140 MB |
 //! | LiDAR sweep (`read_lidar`) | [`MAX_LIDAR_BYTES`] 256 MiB | 16.7M points; a Waymo sweep ~200k points (3 MB) |
+//!
+//! Within its byte budget an executed file's content is then held to counts and plausible values
+//! (`crate::executed_check`: steps, resampled series, box sizes, periods, coordinates).
 
 use crate::error::SceneError;
 use std::io::Read;

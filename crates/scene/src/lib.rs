@@ -6,6 +6,7 @@
 pub mod camera;
 pub mod error;
 pub mod executed;
+pub mod executed_check;
 pub mod format;
 pub mod frames;
 pub mod input;
