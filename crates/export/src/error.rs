@@ -15,6 +15,12 @@ pub enum ExportError {
     /// A value to export is not a finite number.
     #[error("cannot export `{what}`: {value} is not a finite number")]
     NotFinite { what: String, value: f64 },
+    /// The input is larger than a writer's budget (`xodr::budget`): refused before writing.
+    #[error("cannot export `{what}`: {count} {unit}, more than the {max} a file may hold")]
+    TooLarge { what: String, count: usize, unit: &'static str, max: usize },
+    /// A value to export is outside the range the writer accepts.
+    #[error("cannot export `{what}`: {message}")]
+    OutOfRange { what: String, message: String },
     /// An option of a writer is out of range.
     #[error("option `{field}`: {message}")]
     BadOption { field: &'static str, message: String },

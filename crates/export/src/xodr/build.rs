@@ -50,6 +50,9 @@ fn check_options(o: &XodrOptions) -> Result<(), ExportError> {
 /// Builds the network of `scene` (see the module doc of `xodr`).
 pub fn build_road_network(scene: &Scene, opts: &XodrOptions) -> Result<BuiltNetwork, ExportError> {
     check_options(opts)?;
+    if let Some(map) = &scene.map {
+        super::budget::check_map(map, opts.origin)?;
+    }
     let mut roads = Vec::new();
     let mut skipped = Vec::new();
     let empty = scene::map::Map::default();

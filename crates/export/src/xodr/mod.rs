@@ -29,11 +29,16 @@
 //!   CARLA's single-precision engine keeps millimetres). The origin is recorded as header
 //!   `userData code="carla_gs.origin"` (`"x y z"`), and the reader adds it back.
 //! * Numbers: lengths with 6 decimals, angles with 9.
+//! * **Budgets** (`budget`): at most [`MAX_POLYLINE_POINTS`] points a polyline,
+//!   [`MAX_NETWORK_POINTS`] in all, [`MAX_ROADS`] roads, coordinates within [`MAX_COORD_M`];
+//!   checked before anything is built or written.
 
+mod budget;
 mod build;
 mod read;
 mod write;
 
+pub use budget::{MAX_COORD_M, MAX_NETWORK_POINTS, MAX_POLYLINE_POINTS, MAX_ROADS};
 pub use build::{build_road_network, BuiltNetwork, EDGE_WIDTH_RANGE_M, LANE_WIDTH_RANGE_M, MAX_FLAT_MARGIN_M};
 pub use read::read_xodr;
 pub use write::write_xodr;

@@ -1,0 +1,58 @@
+//! Fuzzing find about `export-xodr`: a lane of 1,000,000 points wrote a 162 MB OpenDRIVE file,
+//! and a point 1e300 m away was written. Both exit with code 2 naming the lane and the budget,
+//! before anything is written.
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn carla_gs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn refused(out: Output, needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "expected a refusal naming {needles:?}: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "expected `{n}` in: {stderr}");
+    }
+}
+
+fn ok(out: Output) {
+    assert_eq!(out.status.code(), Some(0), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// Adds a lane of `points` to the map of the scene in `scene` (creating the map if needed).
+fn add_lane(scene: &Path, points: Vec<Value>) {
+    let path = scene.join("scene.json");
+    let mut j: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    if j["map"].is_null() {
+        j["map"] = serde_json::json!({"lanes": [], "road_edges": [], "road_lines": []});
+    }
+    j["map"]["lanes"].as_array_mut().unwrap().push(serde_json::json!({"id": 99, "points": points}));
+    std::fs::write(&path, serde_json::to_vec(&j).unwrap()).unwrap();
+}
+
+#[test]
+fn huge_or_absurd_lanes_are_refused_before_writing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("s40");
+    ok(carla_gs(&["synth", "--out", s(&scene), "--frames", "40", "--width", "32", "--height", "24", "--cameras", "1"]));
+    let xodr = tmp.path().join("map.xodr");
+    ok(carla_gs(&["export-xodr", s(&scene), "--out", s(&xodr)]));
+    std::fs::remove_file(&xodr).unwrap();
+    let pristine = std::fs::read(scene.join("scene.json")).unwrap();
+
+    add_lane(&scene, (0..1_000_000).map(|k| serde_json::json!([k as f64 * 0.5, 0.0, 0.0])).collect());
+    refused(carla_gs(&["export-xodr", s(&scene), "--out", s(&xodr)]), &["(id 99)", "1000000 points", "100000"]);
+    assert!(!xodr.exists());
+
+    std::fs::write(scene.join("scene.json"), &pristine).unwrap();
+    add_lane(&scene, vec![serde_json::json!([0.0, 0.0, 0.0]), serde_json::json!([1e300, 0.0, 0.0])]);
+    refused(carla_gs(&["export-xodr", s(&scene), "--out", s(&xodr)]), &["(id 99) point 1", "1e300 m"]);
+    assert!(!xodr.exists());
+}
