@@ -86,7 +86,8 @@ fn write_element(w: &mut Writer<Vec<u8>>, el: &Element) -> std::io::Result<()> {
 }
 
 /// Parses a whole document into its root element. A document cut short names the innermost
-/// element still open; a syntax error names the element it happened in and the byte offset.
+/// element still open, as is one cut inside a tag (quick-xml's syntax errors are all markup left
+/// open at the end); another error names the element it happened in and the byte offset.
 pub fn parse(text: &str) -> Result<Element, ExportError> {
     let mut reader = Reader::from_str(text);
     reader.config_mut().check_end_names = true;
@@ -101,10 +102,13 @@ pub fn parse(text: &str) -> Result<Element, ExportError> {
     };
     loop {
         let offset = reader.buffer_position();
-        let event = reader.read_event().map_err(|e| ExportError::Xml {
-            path: path(&stack),
-            offset: reader.error_position(),
-            message: e.to_string(),
+        let event = reader.read_event().map_err(|e| match e {
+            // Every syntax error quick-xml reports is markup the input ended inside: a cut file.
+            quick_xml::Error::Syntax(_) => ExportError::Truncated {
+                path: path(&stack),
+                offset: stack.last().map_or(reader.error_position(), |open| open.offset),
+            },
+            e => ExportError::Xml { path: path(&stack), offset: reader.error_position(), message: e.to_string() },
         })?;
         match event {
             Event::Start(s) | Event::Empty(s) if root.is_some() => {

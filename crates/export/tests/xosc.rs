@@ -273,7 +273,22 @@ fn version_1_0_validates_against_its_schema_and_reads_back_the_same_case() {
             (a.scene.clone(), a.behavior.clone(), a.adversary_track.clone()),
             (b.scene, b.behavior, b.adversary_track)
         );
-        assert_eq!(a.entities, b.entities);
+        // The same entities; the 1.0 file's reference point is the box centre, the 1.2 file's
+        // the rear axle, and both read back as box centres (to the files' 1 um).
+        assert_eq!(a.entities.len(), b.entities.len());
+        for (ea, eb) in a.entities.iter().zip(&b.entities) {
+            assert_eq!((&ea.name, ea.kind, &ea.properties), (&eb.name, eb.kind, &eb.properties));
+            assert_eq!(ea.bounding_box.size_lwh, eb.bounding_box.size_lwh);
+            assert_eq!(ea.bounding_box.center[0], 0.0);
+            let behind = if ea.kind == EntityKind::Vehicle { 0.3 * ea.bounding_box.size_lwh[0] } else { 0.0 };
+            assert!(close(eb.bounding_box.center[0], behind, 1e-6), "{} {:?}", eb.name, eb.bounding_box);
+            assert_eq!(ea.vertices.len(), eb.vertices.len());
+            let pairs = ea.vertices.iter().zip(&eb.vertices).chain(ea.initial.iter().zip(&eb.initial));
+            for (p, q) in pairs {
+                assert!(p.t == q.t && p.z == q.z && p.h == q.h, "{} {p:?} {q:?}", ea.name);
+                assert!(close(p.x, q.x, 3e-6) && close(p.y, q.y, 3e-6), "{} {p:?} {q:?}", ea.name);
+            }
+        }
     }
     assert_eq!("1.0".parse::<XoscVersion>(), Ok(XoscVersion::V1_0));
     assert!("1.1".parse::<XoscVersion>().unwrap_err().contains("1.0 or 1.2"));
@@ -298,7 +313,10 @@ fn round_trip_recovers_the_case_on_the_log_clock() {
     assert_eq!(adv.category, "car");
     assert_eq!(adv.track_id(), Some("adv-7"));
     assert_eq!(adv.bounding_box.size_lwh, [4.6, 1.9, 1.5]);
-    assert_eq!(adv.bounding_box.center, [0.0, 0.0, 0.75]);
+    // 1.2: the reference point is the rear axle, 0.3 length behind the box centre; the reader
+    // gives box centres back.
+    assert!(close(adv.bounding_box.center[0], 0.3 * 4.6, 1e-6), "{:?}", adv.bounding_box);
+    assert_eq!(adv.bounding_box.center[1..], [0.0, 0.75]);
     assert_eq!(adv.vertices.len(), executed.steps.len());
     for (v, s) in adv.vertices.iter().zip(&executed.steps) {
         assert!(close(v.t, s.t, 1e-6), "t {} vs {}", v.t, s.t);

@@ -18,8 +18,16 @@
 //!   parameter (the property when the parameter is missing) and restores the log clock.
 //!   The scene name, behaviour and adversary track id are parameters `SceneName`, `Behavior`,
 //!   `AdversaryTrack` and file-header properties too.
-//! * **Reference point and z**: an entity's position is the centre of its box's footprint on the
-//!   ground, so `BoundingBox/Center` is `(0, 0, height / 2)`. `WorldPosition z` is that ground
+//! * **Reference point and z**: OpenSCENARIO 1.2 files put a vehicle's (and a cyclist's)
+//!   reference point on its rear axle, as the standard does: the position written is the box
+//!   centre moved back by 0.3 length along the heading, `BoundingBox/Center` is
+//!   `(0.3 length, 0, height / 2)`, and the axles sit at 0 (rear) and 0.6 length (front). esmini,
+//!   the reference player, re-bases any other reference point onto the rear axle while keeping
+//!   the positions, so a box-centre reference drew every vehicle 0.3 length ahead of itself
+//!   (a head-on contact 0.25 s early). 1.0 files (CARLA's ScenarioRunner, whose actor origin is
+//!   near the box centre) and pedestrians and objects keep the box centre: `Center` `(0, 0,
+//!   height / 2)`. The reader adds `Center` back, so vertices read are box centres either way.
+//!   `WorldPosition z` is the ground
 //!   contact height: a track's logged box-centre z minus half its logged height (interpolated in
 //!   time, held at the ends of its track); the ego's origin z minus half the ego height when the
 //!   ego's origin is its box centre (scenes with an ego track, WOMD), else the origin's z (Waymo
@@ -122,7 +130,8 @@ pub struct BoundingBox {
     pub size_lwh: [f64; 3],
 }
 
-/// One trajectory vertex on the **log clock** (`t` in s), world frame (m, rad).
+/// One trajectory vertex on the **log clock** (`t` in s), world frame (m, rad): read back, the
+/// box centre's footprint (the file's reference point moved by `BoundingBox/Center`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct XoscVertex {
     pub t: f64,

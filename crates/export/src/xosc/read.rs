@@ -108,6 +108,14 @@ pub fn read_xosc(text: &str) -> Result<XoscCase, ExportError> {
     }
     for e in &mut entities {
         e.vertices.sort_by(|a, b| a.t.total_cmp(&b.t));
+        // Positions are the reference point's; the box centre is `BoundingBox/Center` from it.
+        let [cx, cy, _] = e.bounding_box.center;
+        let to_centre = |p: &mut XoscVertex| {
+            let (c, s) = (p.h.cos(), p.h.sin());
+            (p.x, p.y) = (p.x + c * cx - s * cy, p.y + s * cx + c * cy);
+        };
+        e.vertices.iter_mut().for_each(to_centre);
+        e.initial.iter_mut().for_each(to_centre);
     }
     Ok(XoscCase {
         log_start_time,

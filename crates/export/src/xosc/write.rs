@@ -38,9 +38,27 @@ fn property(name: &str, value: impl Into<String>) -> Element {
     Element::new("Property").attr("name", name).attr("value", value)
 }
 
-fn world_position(v: &V) -> Element {
+/// The rear axle's distance behind the box centre, as a fraction of the length (wheelbase 0.6
+/// length, centred in the box).
+pub(crate) const REAR_AXLE_BEHIND_CENTRE: f64 = 0.3;
+
+/// How far the entity's reference point lies behind its box centre (m): OpenSCENARIO 1.2 puts a
+/// vehicle's reference point on its rear axle (esmini, the reference player, re-bases any other
+/// choice onto the rear axle and so draws the box ahead of where it is); 1.0 files, written for
+/// CARLA's ScenarioRunner, whose actor origin is near the box centre, keep the box centre, as do
+/// pedestrians and objects.
+fn reference_behind_centre(v: XoscVersion, a: &Actor) -> f64 {
+    match (v, a.class) {
+        (XoscVersion::V1_2, ObjectClass::Vehicle | ObjectClass::Cyclist) => REAR_AXLE_BEHIND_CENTRE * a.size_lwh[0],
+        _ => 0.0,
+    }
+}
+
+/// The `WorldPosition` of the reference point `behind` metres behind box-centre vertex `v`.
+fn world_position(v: &V, behind: f64) -> Element {
+    let (x, y) = (v.x - behind * v.h.cos(), v.y - behind * v.h.sin());
     Element::new("Position").child(
-        Element::new("WorldPosition").attr("x", len(v.x)).attr("y", len(v.y)).attr("z", len(v.z)).attr("h", fine(v.h)),
+        Element::new("WorldPosition").attr("x", len(x)).attr("y", len(y)).attr("z", len(v.z)).attr("h", fine(v.h)),
     )
 }
 
@@ -122,8 +140,10 @@ fn document(scene: &Scene, executed: &Executed, opts: &XoscOptions, actors: &[Ac
             Element::new("Storyboard")
                 .child(Element::new("Init").child(Element::new("Actions").children(actors.iter().map(|a| {
                     Element::new("Private").attr("entityRef", &a.name).child(
-                        Element::new("PrivateAction")
-                            .child(Element::new("TeleportAction").child(world_position(&a.runs[0][0]))),
+                        Element::new("PrivateAction").child(
+                            Element::new("TeleportAction")
+                                .child(world_position(&a.runs[0][0], reference_behind_centre(v, a))),
+                        ),
                     )
                 }))))
                 .child(
@@ -140,8 +160,9 @@ fn document(scene: &Scene, executed: &Executed, opts: &XoscOptions, actors: &[Ac
 
 fn scenario_object(v: XoscVersion, a: &Actor) -> Element {
     let [l, w, h] = a.size_lwh;
+    let behind = reference_behind_centre(v, a);
     let bbox = Element::new("BoundingBox")
-        .child(Element::new("Center").attr("x", "0").attr("y", "0").attr("z", len(h / 2.0)))
+        .child(Element::new("Center").attr("x", len(behind)).attr("y", "0").attr("z", len(h / 2.0)))
         .child(Element::new("Dimensions").attr("width", len(w)).attr("length", len(l)).attr("height", len(h)));
     let mut props = vec![property(PROP_ROLE, a.role), property(PROP_CLASS, a.class.as_str())];
     if let Some(id) = &a.track_id {
@@ -172,12 +193,13 @@ fn scenario_object(v: XoscVersion, a: &Actor) -> Element {
                         .attr("maxAcceleration", len(max_accel))
                         .attr("maxDeceleration", len(max_decel)),
                 )
-                // Axles relative to the reference point (the box centre): wheelbase 0.6 length.
-                .child(Element::new("Axles").child(axle("FrontAxle", 0.3 * l, 0.5)).child(axle(
-                    "RearAxle",
-                    -0.3 * l,
-                    0.0,
-                )))
+                // Axles relative to the reference point (1.2: the rear axle; 1.0: the box centre):
+                // wheelbase 0.6 length, centred in the box.
+                .child(
+                    Element::new("Axles")
+                        .child(axle("FrontAxle", REAR_AXLE_BEHIND_CENTRE * l + behind, 0.5))
+                        .child(axle("RearAxle", behind - REAR_AXLE_BEHIND_CENTRE * l, 0.0)),
+                )
                 .child(props)
         }
         ObjectClass::Pedestrian if v == XoscVersion::V1_0 => Element::new("Pedestrian")
@@ -205,7 +227,9 @@ fn scenario_object(v: XoscVersion, a: &Actor) -> Element {
 
 fn maneuver_group(v: XoscVersion, a: &Actor) -> Element {
     let events = a.runs.iter().enumerate().map(|(k, run)| {
-        let vertices = run.iter().map(|v| Element::new("Vertex").attr("time", fine(v.t)).child(world_position(v)));
+        let behind = reference_behind_centre(v, a);
+        let vertices =
+            run.iter().map(|p| Element::new("Vertex").attr("time", fine(p.t)).child(world_position(p, behind)));
         let trajectory = Element::new("Trajectory")
             .attr("name", format!("{}_path{k}", a.name))
             .attr("closed", "false")
