@@ -2,29 +2,11 @@
 //! and a point 1e300 m away was written. Both exit with code 2 naming the lane and the budget,
 //! before anything is written.
 
+mod cli_support;
+
+use cli_support::{carla_gs, ok, refused, s};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn carla_gs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn refused(out: Output, needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "expected a refusal naming {needles:?}: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "expected `{n}` in: {stderr}");
-    }
-}
-
-fn ok(out: Output) {
-    assert_eq!(out.status.code(), Some(0), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-}
 
 /// Adds a lane of `points` to the map of the scene in `scene` (creating the map if needed).
 fn add_lane(scene: &Path, points: Vec<Value>) {

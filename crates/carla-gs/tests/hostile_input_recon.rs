@@ -3,33 +3,13 @@
 //! and field, leaves nothing behind, and neither panics nor aborts. S = `synth --frames 3 --width
 //! 64 --height 48`, M = `train S --iters 5`, as in the issue, in a temporary directory.
 
+mod cli_support;
+
+use cli_support::{carla_gs, ok, refused, s};
 use recon::checkpoint::{load_run, save};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn carla_gs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// Exit code 2 with every needle in the message.
-fn refused(out: Output, needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "expected a refusal naming {needles:?}: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "expected `{n}` in: {stderr}");
-    }
-    assert!(!stderr.contains("panicked"), "{stderr}");
-}
-
-fn ok(out: Output) -> String {
-    assert_eq!(out.status.code(), Some(0), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn synth(dir: &Path, name: &str, seed: &str) -> PathBuf {
     let scene = dir.join(name);

@@ -4,31 +4,12 @@
 //! executed files edited to absurd box sizes, periods or resampled series that `metrics` scored
 //! "valid". Each exits with code 2 naming the field, quickly, and writes nothing.
 
+mod cli_support;
+
+use cli_support::{carla_gs, ok, refused, s};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::time::{Duration, Instant};
-
-fn carla_gs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// Exit code 2 with every needle in the message.
-fn refused(out: Output, needles: &[&str]) {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "expected a refusal naming {needles:?}: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "expected `{n}` in: {stderr}");
-    }
-}
-
-fn ok(out: Output) {
-    assert_eq!(out.status.code(), Some(0), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-}
 
 /// A small synthetic street and a cut-in plan on it: (scene, plan).
 fn scene_and_plan(dir: &Path) -> (PathBuf, PathBuf) {

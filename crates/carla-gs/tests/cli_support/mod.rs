@@ -1,0 +1,33 @@
+//! What the command-line tests share: running the binary, and checking a refusal (exit code 2,
+//! every needle in the message, no panic) or a success. Each test file that needs them has
+//! `mod cli_support;`; not every file uses every helper.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// Runs the built `carla-gs` with `args`.
+pub fn carla_gs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_carla-gs")).args(args).output().expect("run carla-gs")
+}
+
+/// A path as the `&str` an argument list takes.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Exit code 2 with every needle in the message, and no panic.
+pub fn refused(out: Output, needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "expected a refusal naming {needles:?}: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "expected `{n}` in: {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// Exit code 0; the standard output.
+pub fn ok(out: Output) -> String {
+    assert_eq!(out.status.code(), Some(0), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
