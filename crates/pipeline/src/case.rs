@@ -10,6 +10,7 @@
 //! window (`eval-cases --horizon 5 --after-plan stop`) second: on a real log a braking lead's plan
 //! ends when it stands, before the logged ego has closed in (PandaSet 002: MinTTC 1.44 s at the
 //! plan's end, 0.89 s over 5 s), while an oncoming drift hits its zone only at its plan's end.
+//! `run` asks for the same two windows when `--horizon` is not given.
 
 use cases::runner::{run_case, CaseConfig, CaseResult, SimulateFn, Status};
 use cases::spec::{AgentName, CaseSpec, T0Spec};

@@ -5,6 +5,7 @@ use super::progress::count_bar;
 use super::recon::{open_cuda, Device};
 use anyhow::Context;
 use cases::spec::{AgentName, T0Spec};
+use cases::window::Horizon;
 use pipeline::case::{CaseRequest, T0Choice};
 use pipeline::run::{RenderSettings, RunInputs};
 use recon::backend::{Cpu, CpuF32};
@@ -83,8 +84,9 @@ pub struct RunArgs {
     seeds_per_t0: usize,
     /// The window measured and rendered: `plan` (the plan's own end) or seconds from t0 (clipped
     /// at the log's end), as `eval-cases --horizon`; `--horizon 5` shows the case the tables count.
-    #[arg(long, default_value = "plan")]
-    horizon: String,
+    /// Default: the plan's own end, and only if no attempt succeeds there, 5 s (as `demo`).
+    #[arg(long)]
+    horizon: Option<String>,
     /// Between the plan's end and the horizon: `stop` (brake to rest at 4 m/s^2) or `hold`.
     #[arg(long, default_value = "stop")]
     after_plan: String,
@@ -139,6 +141,9 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         super::describe::show(text, &reader.name(), &format!(" at t0 = {t:.1} s"), &intent, &summary);
         flags = intent.fill(&flags);
     }
+    let horizon: Option<Horizon> =
+        a.horizon.as_deref().map(str::parse).transpose().map_err(|e: String| anyhow::anyhow!("--horizon: {e}"))?;
+    let after_plan = a.after_plan.parse().map_err(|e: String| anyhow::anyhow!("--after-plan: {e}"))?;
     let req = CaseRequest {
         behavior: flags.behavior.ok_or_else(|| anyhow::anyhow!("--behavior is required (or --describe)"))?,
         agent,
@@ -148,11 +153,11 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         seed: a.seed,
         seeds_per_t0: a.seeds_per_t0,
         refine_rounds: a.refine_rounds,
-        window: cases::window::Window {
-            horizon: a.horizon.parse().map_err(|e: String| anyhow::anyhow!("--horizon: {e}"))?,
-            after_plan: a.after_plan.parse().map_err(|e: String| anyhow::anyhow!("--after-plan: {e}"))?,
-        },
-        fallback_window: None,
+        window: cases::window::Window { horizon: horizon.unwrap_or(Horizon::Plan), after_plan },
+        // Without --horizon, the tables' window when nothing succeeds over the plan's own end.
+        fallback_window: horizon
+            .is_none()
+            .then_some(cases::window::Window { horizon: Horizon::Seconds(5.0), after_plan }),
     };
     let mut llm = match agent {
         AgentName::Local => Some(a.llm.local()?),
