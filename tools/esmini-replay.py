@@ -104,8 +104,15 @@ def main():
     with open(os.path.join(a.run_dir, "executed.json")) as f:
         ex = json.load(f)
     t_start = ex["steps"][0]["t"]
-    work = a.keep or tempfile.mkdtemp(prefix="esmini-replay-")
-    os.makedirs(work, exist_ok=True)
+    if a.keep:
+        os.makedirs(a.keep, exist_ok=True)
+        return replay(a, xosc, ex, t_start, a.keep)
+    with tempfile.TemporaryDirectory(prefix="esmini-replay-") as work:
+        return replay(a, xosc, ex, t_start, work)
+
+
+def replay(a, xosc, ex, t_start, work):
+    """Runs esmini in `work` and prints the report; 0 when it passes."""
     csv_path = os.path.join(work, "esmini.csv")
     cmd = [a.esmini, "--headless", "--osc", xosc, "--fixed_timestep", str(a.dt), "--csv_logger", csv_path,
            "--logfile_path", os.path.join(work, "esmini.log"), "--collision", "--traj_filter", str(a.traj_filter)]
