@@ -259,6 +259,26 @@ pub fn has_magic(head: &[u8; 8]) -> bool {
     head == MAGIC
 }
 
+/// The run a checkpoint's header names, read without its payload (a model's scene check needs
+/// only that, where [`load_run`] reads and checks gigabytes): `None` for a missing, foreign or
+/// damaged file, or one written before runs were named. Never trusted for the model itself.
+pub fn header_run(path: &Path) -> Option<RunIdentity> {
+    use std::io::Read;
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let mut f = std::fs::File::open(path).ok()?;
+    let mut head = [0u8; 16];
+    f.read_exact(&mut head).ok()?;
+    let len = u64::from_le_bytes(head[8..16].try_into().ok()?);
+    if head[..8] != *MAGIC || len > MAX_HEADER_BYTES {
+        return None;
+    }
+    let mut json = Vec::new();
+    f.take(len).read_to_end(&mut json).ok()?;
+    serde_json::from_slice::<Header>(&json).ok()?.run
+}
+
 /// Loads a checkpoint and the run it names (`None` for one written before runs were named).
 pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconError> {
     let bad = |detail: &str| ReconError::Checkpoint { file: path.to_path_buf(), detail: detail.to_string() };

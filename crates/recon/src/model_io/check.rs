@@ -111,42 +111,6 @@ pub fn check_record(dir: &Path, record: &ModelRecord) -> Result<(), ReconError> 
     Ok(())
 }
 
-/// Only the run's identity of a checkpoint's JSON header.
-#[derive(serde::Deserialize)]
-struct HeaderRun {
-    #[serde(default)]
-    run: Option<crate::checkpoint::RunIdentity>,
-}
-
-/// Largest checkpoint header read for the scene's fingerprint (a header lists each set's size and
-/// track id: a few hundred bytes per actor).
-const MAX_HEADER_READ: u64 = 16 << 20;
-
-/// The scene fingerprint recorded in `<dir>/checkpoint.bin`'s header, if the file is there and
-/// names its run (anything else, a damaged file included, gives `None`: the checkpoint is only
-/// read for this, never trusted for the model).
-fn checkpoint_fingerprint(dir: &Path) -> Option<String> {
-    use std::io::Read;
-    let path = dir.join("checkpoint.bin");
-    if !std::fs::metadata(&path).ok()?.is_file() {
-        return None;
-    }
-    let mut f = std::fs::File::open(&path).ok()?;
-    let mut head = [0u8; 16];
-    f.read_exact(&mut head).ok()?;
-    if !crate::checkpoint::has_magic(head[..8].try_into().ok()?) {
-        return None;
-    }
-    let len = u64::from_le_bytes(head[8..16].try_into().ok()?);
-    if len > MAX_HEADER_READ {
-        return None;
-    }
-    let mut json = Vec::new();
-    f.take(len).read_to_end(&mut json).ok()?;
-    let h: HeaderRun = serde_json::from_slice(&json).ok()?;
-    h.run.map(|r| r.scene_fingerprint)
-}
-
 /// The model in `dir` (record `record`) was trained on `scene`, read from `scene_dir`: same
 /// `scene_name`, every actor a track of it, and the same `scene.json` where the model folder's
 /// checkpoint records its fingerprint. Errors name the field and both scenes.
@@ -175,7 +139,7 @@ pub fn check_scene(dir: &Path, record: &ModelRecord, scene_dir: &Path, scene: &S
             ));
         }
     }
-    if let Some(fp) = checkpoint_fingerprint(dir) {
+    if let Some(fp) = crate::checkpoint::header_run(&dir.join("checkpoint.bin")).map(|r| r.scene_fingerprint) {
         let file = scene_dir.join(scene::format::SCENE_FILE);
         let now = crate::resume::scene_fingerprint(scene_dir)?;
         if now != fp {
