@@ -155,9 +155,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         refine_rounds: a.refine_rounds,
         window: cases::window::Window { horizon: horizon.unwrap_or(Horizon::Plan), after_plan },
         // Without --horizon, the tables' window when nothing succeeds over the plan's own end.
-        fallback_window: horizon
-            .is_none()
-            .then_some(cases::window::Window { horizon: Horizon::Seconds(5.0), after_plan }),
+        fallback_window: horizon.is_none().then_some(cases::window::Window { after_plan, ..Default::default() }),
     };
     let mut llm = match agent {
         AgentName::Local => Some(a.llm.local()?),
