@@ -60,6 +60,20 @@ impl Gradients {
         zero(&mut self.features, m * channels, 0.0);
         zero(&mut self.mean2d_norm, m, 0.0);
     }
+
+    /// Sizes every array for `g` like [`Gradients::reset`], but leaves the rows already there as
+    /// they are (only new ones are zero): for a caller that writes every row itself, in parallel,
+    /// instead of a serial clear of the whole model first.
+    pub fn resize_for(&mut self, g: &Gaussians, channels: usize) {
+        let m = g.len();
+        self.means.resize(m, [0.0; 3]);
+        self.log_scales.resize(m, [0.0; 3]);
+        self.rotations.resize(m, [0.0; 4]);
+        self.opacity_logits.resize(m, 0.0);
+        self.sh.resize(g.sh.len(), 0.0);
+        self.features.resize(m * channels, 0.0);
+        self.mean2d_norm.resize(m, 0.0);
+    }
 }
 
 /// Screen-space gradients of one projected Gaussian.

@@ -294,23 +294,37 @@ pub fn backward_into(
         };
         *walked = tile_backward(&tb, sums, fscratch);
     });
-    // Merge the tiles in list order (fixed), in f64, by model index.
+    // Merge the tiles in f64 by model index: each thread owns a range of model indices and walks
+    // every tile's list, so each Gaussian adds its tiles in list order (one fixed order, the same
+    // for any thread count).
     let gs = G_CH + k;
     let n = g.len();
-    bs.acc.clear();
-    bs.acc.resize(n * gs, 0.0);
-    for (list, (sums, _, walked)) in ctx.tiles.lists.iter().zip(&bs.per_tile) {
-        for (slot, &pi) in list.iter().enumerate().take(*walked) {
-            let (dst, src) = (&mut bs.acc[pi as usize * gs..(pi as usize + 1) * gs], &sums[slot * gs..(slot + 1) * gs]);
-            for (d, s) in dst.iter_mut().zip(src) {
-                *d += *s as f64;
+    let BackScratch { per_tile, acc } = bs;
+    acc.resize(n * gs, 0.0);
+    let per = n.div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let lists = &ctx.tiles.lists;
+    acc.par_chunks_mut(per * gs).enumerate().for_each(|(c, acc)| {
+        acc.fill(0.0);
+        let (lo, hi) = (c * per, c * per + acc.len() / gs);
+        for (list, (sums, _, walked)) in lists.iter().zip(per_tile.iter()) {
+            for (slot, &pi) in list.iter().enumerate().take(*walked) {
+                let pi = pi as usize;
+                if pi < lo || pi >= hi {
+                    continue;
+                }
+                let (dst, src) = (&mut acc[(pi - lo) * gs..(pi - lo + 1) * gs], &sums[slot * gs..(slot + 1) * gs]);
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += *s as f64;
+                }
             }
         }
-    }
-    out.reset(g, k);
+    });
+    // Every row is written below (zeroed, then the drawn ones accumulate), in parallel: no
+    // serial clear of the whole model first.
+    out.resize_for(g, k);
     let cc = CamConst::of(cam);
     let kc = g.coeffs() * 3;
-    let acc = &bs.acc;
+    let acc = &*acc;
     (
         out.means.par_iter_mut(),
         out.log_scales.par_iter_mut(),
@@ -322,6 +336,8 @@ pub fn backward_into(
         .into_par_iter()
         .enumerate()
         .for_each(|(i, (mean, log_scale, rotation, opacity_logit, sh, mean2d_norm))| {
+            (*mean, *log_scale, *rotation, *opacity_logit, *mean2d_norm) = ([0.0; 3], [0.0; 3], [0.0; 4], 0.0, 0.0);
+            sh.fill(0.0);
             // Gaussians not drawn have all-zero sums (and stale frames, never read).
             let a = &acc[i * gs..i * gs + G_CH];
             if !ctx.drawn[i] || a.iter().all(|v| *v == 0.0) {
@@ -331,9 +347,10 @@ pub fn backward_into(
             gaussian_backward32(g, i, &cc, ctx.antialiased, &ctx.hot[i], &ctx.frames[i], &Screen::of(a), o);
         });
     if k > 0 {
+        out.features.fill(0.0);
         for &i in &ctx.index {
             let i = i as usize;
-            out.features[i * k..(i + 1) * k].copy_from_slice(&bs.acc[i * gs + G_CH..(i + 1) * gs]);
+            out.features[i * k..(i + 1) * k].copy_from_slice(&acc[i * gs + G_CH..(i + 1) * gs]);
         }
     }
 }
