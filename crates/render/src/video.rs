@@ -80,10 +80,7 @@ impl Default for VideoSpec {
 
 /// The model's actor index of `track`.
 pub fn actor_index(model: &SceneModel, track: &str) -> Result<usize, RenderError> {
-    model.actors.iter().position(|a| a.track_id == track).ok_or_else(|| RenderError::NoActorModel {
-        track: track.into(),
-        available: model.actors.iter().map(|a| a.track_id.as_str()).collect::<Vec<_>>().join(", "),
-    })
+    model.actors.iter().position(|a| a.track_id == track).ok_or_else(|| RenderError::no_actor(model, track))
 }
 
 /// The rasterizer camera `name` on the logged ego at time `t`, within [`crate::budget`].

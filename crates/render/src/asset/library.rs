@@ -266,10 +266,8 @@ pub fn resolve(
 /// with its box size. Nearly transparent Gaussians are left out.
 pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 3]), RenderError> {
     let (model, _) = recon::model_io::load_model(model_dir)?;
-    let actor = model.actors.iter().find(|a| a.track_id == track).ok_or_else(|| RenderError::NoActorModel {
-        track: track.to_string(),
-        available: model.actors.iter().map(|a| a.track_id.as_str()).collect::<Vec<_>>().join(", "),
-    })?;
+    let actor =
+        model.actors.iter().find(|a| a.track_id == track).ok_or_else(|| RenderError::no_actor(&model, track))?;
     let mut g = actor.gaussians.clone();
     let keep: Vec<bool> = g.opacity_logits.iter().map(|&o| splat::gaussians::sigmoid(o) >= 0.02).collect();
     recon::model::retain(&mut g, &keep);

@@ -68,9 +68,8 @@ pub fn replace_actor(
     opts: &AlignOptions,
 ) -> Result<Replacement, RenderError> {
     let degree = model.background.sh_degree;
-    let available = || model.actors.iter().map(|a| a.track_id.as_str()).collect::<Vec<_>>().join(", ");
     let Some(idx) = model.actors.iter().position(|a| a.track_id == track) else {
-        return Err(RenderError::NoActorModel { track: track.to_string(), available: available() });
+        return Err(RenderError::no_actor(model, track));
     };
     let actor = &model.actors[idx];
     let size = actor.size_lwh;

@@ -9,8 +9,9 @@
 //! one `u64` key) -> bin into 16x16 tiles (`tiles::bin_into`'s rule) -> forward per tile
 //! (`forward`, rayon over tiles, tile-major output) -> image rows in f64 (rayon over rows);
 //! backward per tile (`backward`, rayon) -> tiles merged in list order into f64 sums (one fixed
-//! order, so results are deterministic) -> chain rule per Gaussian (`chain`, rayon, each
-//! Gaussian owns its output slots).
+//! order, so results are deterministic; rayon over ranges of model indices, each walking every
+//! list) -> chain rule per Gaussian (`chain`, rayon, each Gaussian owns its output slots and
+//! zeroes them first, so no serial clear of the whole model precedes it).
 //!
 //! Semantics are the reference's: alpha cut-off 1/255, clamp 0.99, early stop at T < 1e-4,
 //! depth, normals (camera or world frame), feature channels, antialiased opacity, and
