@@ -47,22 +47,18 @@ pub struct Gradients {
 impl Gradients {
     /// Sizes every array for `g` (and `channels` features per Gaussian), all zero, reusing memory.
     pub fn reset(&mut self, g: &Gaussians, channels: usize) {
-        fn zero<T: Clone>(v: &mut Vec<T>, len: usize, z: T) {
-            v.clear();
-            v.resize(len, z);
-        }
-        let m = g.len();
-        zero(&mut self.means, m, [0.0; 3]);
-        zero(&mut self.log_scales, m, [0.0; 3]);
-        zero(&mut self.rotations, m, [0.0; 4]);
-        zero(&mut self.opacity_logits, m, 0.0);
-        zero(&mut self.sh, g.sh.len(), 0.0);
-        zero(&mut self.features, m * channels, 0.0);
-        zero(&mut self.mean2d_norm, m, 0.0);
+        self.means.clear();
+        self.log_scales.clear();
+        self.rotations.clear();
+        self.opacity_logits.clear();
+        self.sh.clear();
+        self.features.clear();
+        self.mean2d_norm.clear();
+        self.resize_for(g, channels);
     }
 
-    /// Sizes every array for `g` like [`Gradients::reset`], but leaves the rows already there as
-    /// they are (only new ones are zero): for a caller that writes every row itself, in parallel,
+    /// Sizes every array for `g` (and `channels` features per Gaussian), leaving the rows already
+    /// there as they are (only new ones are zero): for a caller that writes every row itself, in parallel,
     /// instead of a serial clear of the whole model first.
     pub fn resize_for(&mut self, g: &Gaussians, channels: usize) {
         let m = g.len();
