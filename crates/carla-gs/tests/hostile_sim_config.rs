@@ -57,6 +57,16 @@ fn absurd_rollout_configurations_are_refused_on_load() {
     // The defaults, written out, load and run.
     ok(simulate(&|_| {}));
     assert!(exec.exists());
+    std::fs::remove_file(&exec).unwrap();
+    // A file that holds the most rates, and one more from `--fps`: the settings are named, not the plan.
+    let mut c = default.clone();
+    c["resample_hz"] = (0..8).map(|i| Value::from(10.0 + i as f64)).collect();
+    std::fs::write(&config, serde_json::to_vec(&c).unwrap()).unwrap();
+    let args = ["simulate", s(&plan), "--scene", s(&scene), "--out", s(&exec), "--config", s(&config), "--fps", "24"];
+    let out = carla_gs(&args);
+    refused(out.clone(), &["config.json with --control-dt/--fps", "`resample_hz`", "at most 8"]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("cannot execute the plan"));
+    assert!(!exec.exists());
 }
 
 #[test]

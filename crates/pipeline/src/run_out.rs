@@ -119,8 +119,15 @@ impl StagedRun {
     }
 
     /// Moves the finished run in: a new directory in one rename; into an existing run directory,
-    /// the old outputs are removed (only our names) and the new ones renamed in.
+    /// the old outputs are removed (only our names, `run.json` first) and the new ones renamed in,
+    /// `run.json` last. So a crash part-way leaves a directory without `run.json`: never old and
+    /// new outputs together, never a run that looks complete; the next run into it replaces it.
     pub fn commit(self) -> Result<(), PipelineError> {
+        self.commit_observed(&mut |_| {})
+    }
+
+    /// [`StagedRun::commit`], calling `moved` after each new output is renamed in (tests).
+    fn commit_observed(self, moved: &mut dyn FnMut(&str)) -> Result<(), PipelineError> {
         if !self.dest.exists() {
             self.staged.commit()?;
             return Ok(());
@@ -135,9 +142,13 @@ impl StagedRun {
                 _ => {}
             }
         }
-        for (name, from) in names(self.staged.path())? {
+        let mut staged = names(self.staged.path())?;
+        // `run.json` says the run is whole: it goes in last.
+        staged.sort_by_key(|(name, _)| name == OUTPUTS[0]);
+        for (name, from) in staged {
             let to = self.dest.join(&name);
             std::fs::rename(&from, &to).map_err(PipelineError::io(&to))?;
+            moved(&name);
         }
         Ok(())
     }
@@ -188,7 +199,21 @@ mod tests {
         let new = format!(r#"{{"format": "{}", "new": true}}"#, crate::run::RUN_FORMAT);
         let s = StagedRun::new(&d).unwrap();
         std::fs::write(s.path().join("run.json"), &new).unwrap();
-        s.commit().unwrap();
+        std::fs::write(s.path().join("bev.png"), b"new").unwrap();
+        std::fs::write(s.path().join("scenario.json"), b"new").unwrap();
+        std::fs::create_dir(s.path().join("videos")).unwrap();
+        // Until the last rename there is no run.json (a crash there leaves no complete-looking run).
+        let mut order = Vec::new();
+        s.commit_observed(&mut |name| {
+            assert_eq!(d.join("run.json").exists(), name == "run.json", "after {name}");
+            order.push(name.to_string());
+        })
+        .unwrap();
+        assert_eq!(order, ["bev.png", "scenario.json", "videos", "run.json"]);
+        assert_eq!(std::fs::read(d.join("scenario.json")).unwrap(), b"new");
+        std::fs::remove_file(d.join("bev.png")).unwrap();
+        std::fs::remove_file(d.join("scenario.json")).unwrap();
+        std::fs::remove_dir(d.join("videos")).unwrap();
         assert_eq!(std::fs::read_to_string(d.join("run.json")).unwrap(), new);
         assert!(!d.join("scenario.json").exists() && !d.join("videos").exists(), "no mixed outputs");
         assert_eq!(std::fs::read(d.join("README.txt")).unwrap(), b"a person's notes");

@@ -58,6 +58,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         sim::budget::check_rate(fps, span).map_err(|m| anyhow::anyhow!("--fps: {m}"))?;
         cfg.resample_hz.push(fps);
     }
+    // The file alone was checked on load; with the flags on top, the settings are checked again
+    // here, so an error names them rather than the plan.
+    cfg.validate().map_err(|e| {
+        let file = a.config.as_ref().map(|p| format!("{} with ", p.display())).unwrap_or_default();
+        anyhow::anyhow!("rollout settings ({file}--control-dt/--fps): {e}")
+    })?;
     let simulate = a.physics.simulate_fn()?;
     let executed =
         simulate(&scene, &plan, &cfg).with_context(|| format!("{}: cannot execute the plan", a.plan.display()))?;
