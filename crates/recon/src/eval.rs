@@ -41,6 +41,10 @@ pub struct ViewScore {
     /// against its logged box's hull and against the vehicle profile (`eval_boxes`).
     #[serde(default)]
     pub moving_vehicle_iou: Vec<crate::eval_boxes::VehicleIou>,
+    /// Moving vehicles the view shows on fewer than `eval_boxes::MIN_PIXELS` pixels at the size
+    /// scored: counted, not scored.
+    #[serde(default)]
+    pub moving_vehicle_too_small: usize,
 }
 
 /// A mean and how many values it is over.
@@ -93,6 +97,10 @@ pub struct EvalReport {
     pub moving_vehicle_profile_precision: Option<Mean>,
     #[serde(default)]
     pub moving_vehicle_profile_recall: Option<Mean>,
+    /// (View, moving vehicle) pairs shown on too few pixels at the size scored to score
+    /// (`ViewScore::moving_vehicle_too_small`, summed): more at a reduced scale.
+    #[serde(default)]
+    pub moving_vehicle_too_small: usize,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -150,7 +158,8 @@ fn score<B: Backend>(
             }
         }
     } else {
-        s.moving_vehicle_iou = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v, sweep);
+        let pairs = crate::eval_boxes::moving_vehicle_iou(backend, model, scene, v, sweep);
+        (s.moving_vehicle_iou, s.moving_vehicle_too_small) = (pairs.scored, pairs.too_small);
     }
     Ok(s)
 }
@@ -211,6 +220,7 @@ pub fn evaluate<B: Backend>(
         moving_vehicle_profile_recall: mean(
             per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.profile_recall())),
         ),
+        moving_vehicle_too_small: per_view.iter().map(|s| s.moving_vehicle_too_small).sum(),
         lpips: None,
         per_view,
     })

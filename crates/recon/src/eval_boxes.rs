@@ -10,8 +10,10 @@
 //! both masks are compared only where no nearer object's box hull covers the view: a car half
 //! hidden behind another was never seen there, so neither its render nor its box is scored there.
 //! A vehicle counts as moving at a frame when the log labels it `Moving` there, or, without labels,
-//! when its speed is above [`MOVING_SPEED`]. Boxes with a corner behind the camera or fewer than
-//! [`MIN_PIXELS`] visible pixels in the image are skipped.
+//! when its speed is above [`MOVING_SPEED`]. Boxes with a corner behind the camera are skipped;
+//! boxes in the image but with fewer than [`MIN_PIXELS`] visible pixels at the size scored are
+//! counted, not scored ([`Pairs::too_small`]): a model scored at a quarter of the cameras' size has
+//! fewer pairs than one scored at full size, and says how many fewer.
 //! Where the view's frame has a LiDAR sweep of its own, a third reference is the silhouette the
 //! sweep measured (`eval_lidar`): the hull of the points it took on the car.
 //! Each pair also records how much of the vehicle the view shows: the visible fraction of its box
@@ -72,6 +74,14 @@ fn hull_px(v: &View, pose: &BoxPose, corners: &[DVec3]) -> Option<Vec<DVec2>> {
 /// one is in front.
 fn hull_mask(v: &View, pose: &BoxPose, corners: &[DVec3]) -> Option<Vec<bool>> {
     hull_px(v, pose, corners).map(|poly| filled(v, &poly))
+}
+
+/// Whether the bounding box of pixel polygon `poly` overlaps the view's image.
+fn reaches_image(v: &View, poly: &[DVec2]) -> bool {
+    let (w, h) = (v.width() as f64, v.height() as f64);
+    let (lo, hi) =
+        poly.iter().fold((DVec2::splat(f64::MAX), DVec2::splat(f64::MIN)), |(a, b), p| (a.min(*p), b.max(*p)));
+    lo.x < w && lo.y < h && hi.x > 0.0 && hi.y > 0.0
 }
 
 /// The view-sized mask of a convex polygon (pixels).
@@ -177,6 +187,14 @@ impl VehicleIou {
     }
 }
 
+/// The moving vehicles of one view: the scored pairs, and how many were in the image but showed
+/// fewer than [`MIN_PIXELS`] visible pixels at the view's size (small there, or behind nearer boxes).
+#[derive(Clone, Debug, Default)]
+pub struct Pairs {
+    pub scored: Vec<VehicleIou>,
+    pub too_small: usize,
+}
+
 /// The IoUs of every moving vehicle of the model seen in view `v` (see the module comment);
 /// `sweep` is the view frame's own LiDAR sweep, if it has one.
 pub fn moving_vehicle_iou<B: Backend>(
@@ -185,7 +203,7 @@ pub fn moving_vehicle_iou<B: Backend>(
     scene: &Scene,
     v: &View,
     sweep: Option<&Sweep>,
-) -> Vec<VehicleIou> {
+) -> Pairs {
     moving_vehicle_pairs(backend, model, scene, v, sweep, &mut |_, _| {})
 }
 
@@ -206,8 +224,8 @@ pub fn moving_vehicle_pairs<B: Backend>(
     v: &View,
     sweep: Option<&Sweep>,
     sink: &mut dyn FnMut(&VehicleIou, &PairMasks),
-) -> Vec<VehicleIou> {
-    let mut out = Vec::new();
+) -> Pairs {
+    let mut out = Pairs::default();
     for (ai, actor) in model.actors.iter().enumerate() {
         let Some(track) = scene.track(&actor.track_id) else { continue };
         if track.class != ObjectClass::Vehicle {
@@ -229,6 +247,7 @@ pub fn moving_vehicle_pairs<B: Backend>(
         let count = |m: &[bool]| m.iter().filter(|x| **x).count();
         let shown = count(&truth);
         if shown < MIN_PIXELS {
+            out.too_small += usize::from(reaches_image(v, &hull));
             continue;
         }
         let stored_height = scene.camera(&v.camera).map_or(v.height() as f64, |c| c.height as f64);
@@ -259,7 +278,7 @@ pub fn moving_vehicle_pairs<B: Backend>(
                 profile_overlap_px,
             };
             sink(&pair, &PairMasks { rendered: &mask, profile: &profile, hidden: &hidden, alpha: &alone.alpha });
-            out.push(pair);
+            out.scored.push(pair);
         }
     }
     out

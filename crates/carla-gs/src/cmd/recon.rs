@@ -216,6 +216,13 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     pairs("  clear pairs: LiDAR", &r.moving_vehicle_clear_lidar_iou);
     pairs("  profile precision", &r.moving_vehicle_profile_precision);
     pairs("  profile recall", &r.moving_vehicle_profile_recall);
+    if r.moving_vehicle_box_iou.is_some() || r.moving_vehicle_too_small > 0 {
+        let min = recon::eval_boxes::MIN_PIXELS;
+        println!(
+            "{:<28} {:>9}  (pairs under {min} px at this scale)",
+            "  not scored: too small", r.moving_vehicle_too_small
+        );
+    }
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
 }
