@@ -99,14 +99,19 @@ pub fn compose_into(
 
 /// Appends the background `bg` (already in the world) to `w`, with its first
 /// `sh_coeffs(active_degree)` SH coefficients.
+/// The copy runs on every thread (indexed `par_extend` writes in place): it is a training step's
+/// largest serial memory pass otherwise.
 pub(crate) fn push_background(bg: &Gaussians, active_degree: usize, w: &mut Gaussians) {
     let k = sh_coeffs(active_degree) * 3;
-    w.means.extend_from_slice(&bg.means);
-    w.log_scales.extend_from_slice(&bg.log_scales);
-    w.rotations.extend_from_slice(&bg.rotations);
-    w.opacity_logits.extend_from_slice(&bg.opacity_logits);
-    for i in 0..bg.len() {
-        w.sh.extend_from_slice(&bg.sh_of(i)[..k]);
+    let kc = bg.coeffs() * 3;
+    w.means.par_extend(bg.means.par_iter().copied());
+    w.log_scales.par_extend(bg.log_scales.par_iter().copied());
+    w.rotations.par_extend(bg.rotations.par_iter().copied());
+    w.opacity_logits.par_extend(bg.opacity_logits.par_iter().copied());
+    if k == kc {
+        w.sh.par_extend(bg.sh.par_iter().copied());
+    } else {
+        w.sh.par_extend((0..bg.len() * k).into_par_iter().map(|j| bg.sh[j / k * kc + j % k]));
     }
 }
 

@@ -241,11 +241,33 @@ impl TrainConfig {
     pub fn active_degree(&self, it: usize) -> usize {
         (it / self.sh_degree_interval).min(self.sh_degree)
     }
+
+    /// The SH degree a model trained with these settings stores: the highest the schedule draws
+    /// within `iterations` (`sh_degree` when it gets there). Bands it never draws would stay zero,
+    /// add nothing to a colour and cost memory and optimiser bandwidth on every step (at 1,500
+    /// iterations and the default interval: degree 1, 12 coefficients a Gaussian instead of 48).
+    pub fn stored_degree(&self) -> usize {
+        self.active_degree(self.iterations.saturating_sub(1))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_model_stores_the_degrees_the_schedule_draws() {
+        let mut cfg = TrainConfig::default();
+        assert_eq!((cfg.iterations, cfg.sh_degree_interval, cfg.sh_degree), (3000, 1000, 3));
+        assert_eq!(cfg.stored_degree(), 2, "the last step, 2999, draws degree 2");
+        for (iterations, degree) in [(0, 0), (1, 0), (1000, 0), (1001, 1), (1500, 1), (3001, 3), (30_000, 3)] {
+            cfg.iterations = iterations;
+            assert_eq!(cfg.stored_degree(), degree, "{iterations} iterations");
+            assert!((0..iterations).all(|it| cfg.active_degree(it) <= degree), "{iterations}: a drawn band is stored");
+        }
+        cfg.sh_degree = 1;
+        assert_eq!(cfg.stored_degree(), 1);
+    }
 
     #[test]
     fn toml_round_trip_and_unknown_keys() {

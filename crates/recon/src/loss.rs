@@ -17,6 +17,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::ssim::ssim_channel;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// What a view is compared with, at training resolution. Maps are row-major; `normal` is unit, in
@@ -137,12 +138,19 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
         }
     }
     parts.l1 = l1 * inv;
+    // The three channels' SSIM on every thread, combined in channel order (the same sums).
+    let per_channel: Vec<(f64, Vec<f64>)> = (0..3)
+        .into_par_iter()
+        .map(|c| {
+            let x: Vec<f64> = out.iter().map(|p| p[c]).collect();
+            let y: Vec<f64> = t.rgb.iter().map(|p| p[c] as f64).collect();
+            let mut gs = vec![0.0; n];
+            (ssim_channel(&x, &y, r.width, r.height, Some(&mut gs)), gs)
+        })
+        .collect();
     let mut ssim = 0.0;
-    let mut gs = vec![0.0; n];
-    for c in 0..3 {
-        let x: Vec<f64> = out.iter().map(|p| p[c]).collect();
-        let y: Vec<f64> = t.rgb.iter().map(|p| p[c] as f64).collect();
-        ssim += ssim_channel(&x, &y, r.width, r.height, Some(&mut gs)) / 3.0;
+    for (c, (value, gs)) in per_channel.iter().enumerate() {
+        ssim += value / 3.0;
         for i in 0..n {
             g_out[i][c] -= w.ssim * gs[i] / 3.0;
         }

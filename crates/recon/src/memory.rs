@@ -220,7 +220,7 @@ pub fn check_model(
 ) -> Result<(), ReconError> {
     let Some(available) = available else { return Ok(()) };
     let most = most_gaussians(cfg, actor_tracks);
-    let each = bytes_per_gaussian(cfg.sh_degree);
+    let each = bytes_per_gaussian(cfg.stored_degree());
     let need = most.saturating_mul(each);
     if need.saturating_add(targets) <= available {
         return Ok(());
@@ -235,7 +235,7 @@ pub fn check_model(
         cfg.init.max_points,
         cfg.init.actor_points,
         human(need),
-        cfg.sh_degree,
+        cfg.stored_degree(),
         human(targets),
         human(available),
     )))
@@ -322,8 +322,16 @@ mod tests {
         assert!(check_model(&cfg, 2, 1 << 20, None).is_ok());
         let mut big = cfg.clone();
         big.densify.max_gaussians = 10_000_000;
+        // A run long enough to reach degree 3 stores it...
+        big.iterations = 3001;
         let e = check_model(&big, 2, 1 << 20, Some(8 << 30)).unwrap_err().to_string();
         assert!(e.contains("up to 10000000 Gaussians") && e.contains("22.2 GiB") && e.contains("8.0 GiB"), "{e}");
+        assert!(e.contains("at sh_degree 3"), "{e}");
+        // ...one that ends before degree 2 is drawn stores degree 1: 944 bytes a Gaussian.
+        big.iterations = 1500;
+        assert_eq!(bytes_per_gaussian(1), 944);
+        let e = check_model(&big, 2, 1 << 20, Some(8 << 30)).unwrap_err().to_string();
+        assert!(e.contains("8.8 GiB") && e.contains("at sh_degree 1"), "{e}");
         let mut init = cfg;
         init.init.max_points = 10_000_000;
         init.init.actor_points = 10_000_000;

@@ -135,7 +135,7 @@ fn run_in<B: Backend>(
         (st, None)
     } else {
         let (model, report) =
-            initialise(req.scene_dir, &scene, &views, &cfg.init, cfg.sh_degree, cfg.sky_res, cfg.seed)?;
+            initialise(req.scene_dir, &scene, &views, &cfg.init, cfg.stored_degree(), cfg.sky_res, cfg.seed)?;
         tracing::info!(?report, "initialised");
         (Trainer::<B>::fresh_state(model), Some(report))
     };

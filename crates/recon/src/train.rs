@@ -19,6 +19,7 @@ use crate::sky::Sky;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use scene::Scene;
 use splat::backward::{Gradients, Upstream};
 use splat::render::{Image, RenderOptions};
@@ -125,8 +126,9 @@ impl<'a, B: Backend> Trainer<'a, B> {
         self.backend.render(&self.composed.world, &view.cam, &opts, &mut self.img, &mut self.ctx);
         let (w, h) = (view.width(), view.height());
         let sky = &self.state.model.sky;
-        let taps: Vec<_> = (0..w * h).map(|i| sky.taps(pixel_ray(&view.cam, i % w, i / w))).collect();
-        let sky_rgb: Vec<[f64; 3]> = taps.iter().map(|t| sky.sample(t)).collect();
+        // Per pixel, independent: on every thread (an indexed collect keeps the order).
+        let taps: Vec<_> = (0..w * h).into_par_iter().map(|i| sky.taps(pixel_ray(&view.cam, i % w, i / w))).collect();
+        let sky_rgb: Vec<[f64; 3]> = taps.par_iter().map(|t| sky.sample(t)).collect();
         let r = Rendered {
             width: w,
             height: h,
