@@ -69,10 +69,22 @@ impl Step {
         }
     }
 
-    /// Every row of a chunk: at once when one segment spans the row, else segment by segment.
+    /// Every row of a chunk: at once when one segment spans the row, whole short rows with a rate
+    /// per column, else segment by segment.
     #[inline(always)]
     fn chunk(&self, p: &mut [f64], g: &[f64], m: &mut [f64], v: &mut [f64], rows: &Rows) {
         let w = rows.width;
+        if let Some(rates) = &rows.rates {
+            let rates = &rates[..w];
+            let rows =
+                p.chunks_exact_mut(w).zip(g.chunks_exact(w)).zip(m.chunks_exact_mut(w)).zip(v.chunks_exact_mut(w));
+            for (((p, g), m), v) in rows {
+                for j in 0..w {
+                    self.apply(&mut p[j], g[j], &mut m[j], &mut v[j], rates[j]);
+                }
+            }
+            return;
+        }
         match rows.segments {
             ((0, end, lr), None) if end == w => self.run(p, g, m, v, lr),
             (first, second) => {
@@ -123,11 +135,21 @@ impl Step {
 /// rest at another, and ends at the bands the schedule has drawn: the coefficients of the bands
 /// not drawn yet have zero gradients and both moments zero, so Adam would leave them as they
 /// are; skipping them gives the same bits.
+///
+/// Rows of at most [`SHORT`] values (an SH row of degree 1 or less) go whole instead, with a rate
+/// per column (`rates`): a band not drawn yet is left as it is by the step itself (a zero
+/// gradient and zero moments move nothing, to the bit), and a few scalar values at a stride of
+/// the row are slower than the whole row in vector form (stop 50: the DC coefficients, 3 of each
+/// row of 12, were most of Adam's time).
 #[derive(Clone, Copy)]
 struct Rows {
     width: usize,
     segments: (Segment, Option<Segment>),
+    rates: Option<[f64; SHORT]>,
 }
+
+/// The longest row Adam takes whole with a rate per column.
+const SHORT: usize = 12;
 
 /// `(start, end, learning rate)` within a row.
 type Segment = (usize, usize, f64);
@@ -135,7 +157,7 @@ type Segment = (usize, usize, f64);
 impl Rows {
     /// Whole rows of `width` at rate `lr`.
     fn whole(width: usize, lr: f64) -> Rows {
-        Rows { width, segments: ((0, width, lr), None) }
+        Rows { width, segments: ((0, width, lr), None), rates: None }
     }
 }
 
@@ -188,7 +210,8 @@ pub fn adam_step(
         // DC (3 values) at `sh_dc`, the drawn higher bands at `sh_rest`.
         let (k, used) = (p.coeffs() * 3, sh_coeffs(sh_degree.min(p.sh_degree)) * 3);
         let rest = (used > 3).then_some((3, used, lr.sh_rest));
-        let sh = Rows { width: k, segments: ((0, 3.min(k), lr.sh_dc), rest) };
+        let rates = (k > 3 && k <= SHORT).then(|| std::array::from_fn(|j| if j < 3 { lr.sh_dc } else { lr.sh_rest }));
+        let sh = Rows { width: k, segments: ((0, 3.min(k), lr.sh_dc), rest), rates };
         s.slice(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, sh);
     }
     s.slice(&mut model.sky.texels, sky_grad, &mut state.sky_m, &mut state.sky_v, Rows::whole(1, lr.sky));
@@ -209,16 +232,17 @@ mod tests {
         assert!((p - 1.1).abs() < 1e-9);
     }
 
-    /// A two-set model (5000 rows: more than one parallel chunk) of SH degree 3 with values
-    /// from `f`.
-    fn model(f: &mut dyn FnMut() -> f64) -> SceneModel {
+    /// A two-set model (5000 rows: more than one parallel chunk) of SH degree `degree` with
+    /// values from `f`.
+    fn model(degree: usize, f: &mut dyn FnMut() -> f64) -> SceneModel {
+        let k = sh_coeffs(degree) * 3;
         let set = |n: usize, f: &mut dyn FnMut() -> f64| Gaussians {
             means: (0..n).map(|_| [f(), f(), f()]).collect(),
             log_scales: (0..n).map(|_| [f(), f(), f()]).collect(),
             rotations: (0..n).map(|_| [f(), f(), f(), f()]).collect(),
             opacity_logits: (0..n).map(|_| f()).collect(),
-            sh_degree: 3,
-            sh: (0..n * 48).map(|_| f()).collect(),
+            sh_degree: degree,
+            sh: (0..n * k).map(|_| f()).collect(),
         };
         let actor = crate::model::Actor { track_id: "a".into(), size_lwh: [4.0, 2.0, 1.5], gaussians: set(7, f) };
         SceneModel { background: set(5000, f), actors: vec![actor], sky: crate::sky::Sky::new(2, [0.5; 3]) }
@@ -238,23 +262,32 @@ mod tests {
             .collect()
     }
 
+    /// Degree 3 (SH rows of 48: the bands not drawn are skipped) and degree 1 (rows of 12: taken
+    /// whole with a rate per column).
     #[test]
     fn unscheduled_sh_bands_are_skipped_without_changing_a_bit() {
+        for stored in [3, 1] {
+            unscheduled_bands(stored);
+        }
+    }
+
+    fn unscheduled_bands(stored: usize) {
         let mut x = 0.3;
         let mut next = move || {
             x = (x * 7.3 + 0.31) % 1.0;
             x - 0.5
         };
-        let m0 = model(&mut next);
+        let m0 = model(stored, &mut next);
+        let k = sh_coeffs(stored) * 3;
         let mut grads: Vec<Gaussians> = m0.sets().map(crate::model::zeros_like).collect();
         let sky_grad: Vec<f64> = (0..m0.sky.texels.len()).map(|_| next()).collect();
         let lr = LearningRates::default();
-        for degree in 0..=3 {
+        for degree in 0..=stored {
             // Gradients only on the bands drawn at `degree`, as the trainer's scatter gives.
             let used = sh_coeffs(degree) * 3;
             for g in &mut grads {
                 for (j, v) in g.sh.iter_mut().enumerate() {
-                    *v = if j % 48 < used { next() } else { 0.0 };
+                    *v = if j % k < used { next() } else { 0.0 };
                 }
                 g.means.iter_mut().flatten().for_each(|v| *v = next());
                 g.opacity_logits.iter_mut().for_each(|v| *v = next());
@@ -263,7 +296,7 @@ mod tests {
             let (mut sa, mut sb) = (AdamState::new(&a), AdamState::new(&b));
             for _ in 0..3 {
                 adam_step(&mut a, &mut sa, &grads, &sky_grad, &lr, 1e-3, degree);
-                adam_step(&mut b, &mut sb, &grads, &sky_grad, &lr, 1e-3, 3);
+                adam_step(&mut b, &mut sb, &grads, &sky_grad, &lr, 1e-3, stored);
             }
             let (fa, fb) = (flat(&a), flat(&b));
             assert!(fa.iter().zip(&fb).all(|(x, y)| x.to_bits() == y.to_bits()), "degree {degree}");
@@ -314,7 +347,7 @@ mod tests {
                         &|_| r,
                     );
                     let (dc, rest) = (lr.sh_dc, lr.sh_rest);
-                    each(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, &|j| if j % 48 < 3 { dc } else { rest });
+                    each(&mut p.sh, &g.sh, &mut m.sh, &mut v.sh, &|j| if j % k < 3 { dc } else { rest });
                 }
                 let r = lr.sky;
                 let (pk, mk, vk) = (&mut c.sky.texels, &mut sc.sky_m, &mut sc.sky_v);
