@@ -97,23 +97,56 @@ pub fn on_screen(mean: [f64; 2], extent: [f64; 2], cam: &Camera) -> bool {
 /// eigenvalue is `s_max^2`); likewise along y. Padded (relative 1e-6 and 1e-6 px) so rounding never
 /// culls what the exact test keeps; NaN culls nothing here (the exact path decides).
 pub fn surely_off_screen(p: [f64; 3], s_max: f64, cam: &Camera) -> bool {
-    const LEVEL_MAX: f64 = 11.082_6; // 2 ln 255 = 11.08253, rounded up
-    let z = p[2];
-    let (ux, uy) = (p[0] / z, p[1] / z);
-    let (w_px, h_px) = (cam.width as f64, cam.height as f64);
-    let cx_ = ux.clamp(-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx);
-    let cy_ = uy.clamp(-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy);
-    let w = &cam.camera_from_world;
-    // |T_row|^2 for J_row = (f / z) (e_axis - u e_z): (f / z)^2 |W_axis - u W_z|^2.
-    let row = |f: f64, axis: usize, u: f64| {
-        let v: [f64; 3] = std::array::from_fn(|b| w[axis][b] - u * w[2][b]);
-        (f / z) * (f / z) * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    };
-    let s2 = s_max * s_max;
-    let bound = |t2: f64| (LEVEL_MAX * (t2 * s2 + EPS2D)).sqrt() * (1.0 + 1e-6) + 1e-6;
-    let (bx, by) = (bound(row(cam.fx, 0, cx_)), bound(row(cam.fy, 1, cy_)));
-    let (mx, my) = (cam.fx * ux + cam.cx, cam.fy * uy + cam.cy);
-    mx + bx < 0.0 || mx - bx >= w_px || my + by < 0.0 || my - by >= h_px
+    ScreenBound::of(cam).surely_off(p, s_max)
+}
+
+/// [`surely_off_screen`]'s per-camera constants (the clamp limits, the rotation, the
+/// intrinsics), for a caller that tests every Gaussian of a model against one camera: the same
+/// arithmetic, the four divisions of the limits done once.
+#[derive(Clone, Copy, Debug)]
+pub struct ScreenBound {
+    lim_x: [f64; 2],
+    lim_y: [f64; 2],
+    rot: [[f64; 3]; 3],
+    f: [f64; 2],
+    c: [f64; 2],
+    size: [f64; 2],
+}
+
+impl ScreenBound {
+    pub fn of(cam: &Camera) -> Self {
+        let (w_px, h_px) = (cam.width as f64, cam.height as f64);
+        let w = &cam.camera_from_world;
+        ScreenBound {
+            lim_x: [-1.3 * cam.cx / cam.fx, 1.3 * (w_px - cam.cx) / cam.fx],
+            lim_y: [-1.3 * cam.cy / cam.fy, 1.3 * (h_px - cam.cy) / cam.fy],
+            rot: std::array::from_fn(|a| [w[a][0], w[a][1], w[a][2]]),
+            f: [cam.fx, cam.fy],
+            c: [cam.cx, cam.cy],
+            size: [w_px, h_px],
+        }
+    }
+
+    /// [`surely_off_screen`] for camera-frame mean `p` and largest scale `s_max`.
+    pub fn surely_off(&self, p: [f64; 3], s_max: f64) -> bool {
+        const LEVEL_MAX: f64 = 11.082_6; // 2 ln 255 = 11.08253, rounded up
+        let z = p[2];
+        let (ux, uy) = (p[0] / z, p[1] / z);
+        let [w_px, h_px] = self.size;
+        let cx_ = ux.clamp(self.lim_x[0], self.lim_x[1]);
+        let cy_ = uy.clamp(self.lim_y[0], self.lim_y[1]);
+        let w = &self.rot;
+        // |T_row|^2 for J_row = (f / z) (e_axis - u e_z): (f / z)^2 |W_axis - u W_z|^2.
+        let row = |f: f64, axis: usize, u: f64| {
+            let v = [w[axis][0] - u * w[2][0], w[axis][1] - u * w[2][1], w[axis][2] - u * w[2][2]];
+            (f / z) * (f / z) * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        };
+        let s2 = s_max * s_max;
+        let bound = |t2: f64| (LEVEL_MAX * (t2 * s2 + EPS2D)).sqrt() * (1.0 + 1e-6) + 1e-6;
+        let (bx, by) = (bound(row(self.f[0], 0, cx_)), bound(row(self.f[1], 1, cy_)));
+        let (mx, my) = (self.f[0] * ux + self.c[0], self.f[1] * uy + self.c[1]);
+        mx + bx < 0.0 || mx - bx >= w_px || my + by < 0.0 || my - by >= h_px
+    }
 }
 
 /// Projects Gaussian `i`; `None` if culled or degenerate (never NaN out).

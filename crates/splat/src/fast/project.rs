@@ -13,7 +13,7 @@
 
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
-use crate::project::{on_screen, rotation, surely_off_screen, EPS2D};
+use crate::project::{on_screen, rotation, ScreenBound, EPS2D};
 use crate::sh::basis;
 
 pub const ALPHA_MIN: f32 = 1.0 / 255.0;
@@ -79,6 +79,8 @@ pub struct CamConst {
     pub lim_y: [f64; 2],
     pub fx: f32,
     pub fy: f32,
+    /// The early cull's constants.
+    pub bound: ScreenBound,
 }
 
 impl CamConst {
@@ -92,6 +94,7 @@ impl CamConst {
             lim_y: [-1.3 * cam.cy / cam.fy, 1.3 * (hpx - cam.cy) / cam.fy],
             fx: cam.fx as f32,
             fy: cam.fy as f32,
+            bound: ScreenBound::of(cam),
         }
     }
 }
@@ -103,10 +106,18 @@ pub fn project32(g: &Gaussians, i: usize, cam: &Camera, cc: &CamConst, antialias
     if !(p64[2] > cam.near && p64[2] < cam.far) || p64.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let s64 = g.log_scales[i].map(f64::exp);
-    if s64.iter().any(|v| !v.is_finite()) || surely_off_screen(p64, s64[0].max(s64[1]).max(s64[2]), cam) {
+    // The reference's early cull with one exp instead of three (most Gaussians end here): exp is
+    // monotone, so the largest scale is the exp of the largest log-scale and every scale is
+    // finite when it is (a NaN log-scale culls, as its NaN scale does in the reference).
+    let ls = g.log_scales[i];
+    if ls.iter().any(|v| v.is_nan()) {
         return None;
     }
+    let s_max = ls[0].max(ls[1]).max(ls[2]).exp();
+    if !s_max.is_finite() || cc.bound.surely_off(p64, s_max) {
+        return None;
+    }
+    let s64 = ls.map(f64::exp);
     let p = p64.map(|v| v as f32);
     // The covariance chain in f64: a very flat Gaussian's small eigenvalue (scale ratio below
     // about 3e-4) and the antialiasing determinant would be lost to f32 rounding.
