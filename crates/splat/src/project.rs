@@ -105,8 +105,10 @@ pub fn surely_off_screen(p: [f64; 3], s_max: f64, cam: &Camera) -> bool {
 /// arithmetic, the four divisions of the limits done once.
 #[derive(Clone, Copy, Debug)]
 pub struct ScreenBound {
-    lim_x: [f64; 2],
-    lim_y: [f64; 2],
+    /// `x / z` and `y / z` clamp limits: 1.3x the field of view on each side of the principal
+    /// point (the projection's and the chain rule's too).
+    pub lim_x: [f64; 2],
+    pub lim_y: [f64; 2],
     rot: [[f64; 3]; 3],
     f: [f64; 2],
     c: [f64; 2],

@@ -230,7 +230,7 @@ fn degenerate_scenes_match_the_reference() {
         let mut d32 = Vec::new();
         c32.for_each_drawn(&mut |i, _| d32.push(i));
         d64.sort_unstable();
-        // The one difference: 63's 5e34 m scales put its covariance beyond f32, so only the
+        // The one difference: 63's 5e34 m scales make its conic underflow in f32, so only the
         // reference draws it (docs/cpu-f32.md).
         assert!(d64.contains(&63) && !d32.contains(&63), "aa {aa}: Gaussian 63");
         d64.retain(|i| *i != 63);

@@ -133,7 +133,7 @@ pub fn gaussian_backward32(
     let (fx, fy) = (cc.fx, cc.fy);
     let (ux, uy) = (if f.clamped[0] { 0.0 } else { x / z }, if f.clamped[1] { 0.0 } else { y / z });
     let lim = |l: [f64; 2]| [l[0] as f32, l[1] as f32];
-    let (lx, ly) = (lim(cc.lim_x), lim(cc.lim_y));
+    let (lx, ly) = (lim(cc.bound.lim_x), lim(cc.bound.lim_y));
     let tx_over_z = ((x / z).clamp(lx[0], lx[1]), (y / z).clamp(ly[0], ly[1]));
     let zz = z * z;
     g_p[2] += g_j[0][0] * -fx / zz + g_j[1][1] * -fy / zz;

@@ -75,23 +75,18 @@ pub struct Frame32 {
 pub struct CamConst {
     pub wr: [[f32; 3]; 3],
     pub center: [f64; 3],
-    pub lim_x: [f64; 2],
-    pub lim_y: [f64; 2],
     pub fx: f32,
     pub fy: f32,
-    /// The early cull's constants.
+    /// The early cull's constants, with the clamp limits.
     pub bound: ScreenBound,
 }
 
 impl CamConst {
     pub fn of(cam: &Camera) -> Self {
         let w = &cam.camera_from_world;
-        let (wpx, hpx) = (cam.width as f64, cam.height as f64);
         CamConst {
             wr: std::array::from_fn(|a| std::array::from_fn(|b| w[a][b] as f32)),
             center: cam.center(),
-            lim_x: [-1.3 * cam.cx / cam.fx, 1.3 * (wpx - cam.cx) / cam.fx],
-            lim_y: [-1.3 * cam.cy / cam.fy, 1.3 * (hpx - cam.cy) / cam.fy],
             fx: cam.fx as f32,
             fy: cam.fy as f32,
             bound: ScreenBound::of(cam),
@@ -132,8 +127,8 @@ pub fn project32(g: &Gaussians, i: usize, cam: &Camera, cc: &CamConst, antialias
     }
     let z = p64[2];
     let (ux, uy) = (p64[0] / z, p64[1] / z);
-    let cx_ = ux.clamp(cc.lim_x[0], cc.lim_x[1]);
-    let cy_ = uy.clamp(cc.lim_y[0], cc.lim_y[1]);
+    let cx_ = ux.clamp(cc.bound.lim_x[0], cc.bound.lim_x[1]);
+    let cy_ = uy.clamp(cc.bound.lim_y[0], cc.bound.lim_y[1]);
     let clamped = [cx_ != ux, cy_ != uy];
     let (fx, fy) = (cam.fx, cam.fy);
     let j = [[fx / z, 0.0, -fx * cx_ / z], [0.0, fy / z, -fy * cy_ / z]];
