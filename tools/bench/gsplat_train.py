@@ -227,6 +227,11 @@ def gaussian_window(torch, device):
 
 def ssim(torch, img, ref, g):
     """Mean SSIM of [H,W,3] images: separable 11x11 Gaussian, zero padding, 'same' size."""
+    return ssim_map(torch, img, ref, g).mean()
+
+
+def ssim_map(torch, img, ref, g):
+    """The SSIM map of [H,W,3] images averaged over the channels: [H,W] (recon::ssim::ssim_map_rgb)."""
     import torch.nn.functional as F
     x, y = img.permute(2, 0, 1)[:, None], ref.permute(2, 0, 1)[:, None]  # [3,1,H,W]
     gh, gv = g.view(1, 1, 1, 11), g.view(1, 1, 11, 1)
@@ -238,7 +243,59 @@ def ssim(torch, img, ref, g):
     mx, my = blur(x), blur(y)
     sxx, syy, sxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
     s = (2 * mx * my + c1) * (2 * sxy + c2) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
-    return s.mean()
+    return s[:, 0].mean(0)
+
+
+def load_vehicle_masks(folder):
+    """`eval-recon --vehicle-masks` output (recon::vehicle_masks): {(frame, camera): entry} with the
+    unions' and each vehicle's hull and rect masks as numpy bool arrays."""
+    from PIL import Image
+    index = json.load(open(os.path.join(folder, "masks.json")))
+    assert index["format"] == "carla-gs-vehicle-masks/1", index["format"]
+    load = lambda name, w, h: _mask(Image, os.path.join(folder, name), w, h)
+    out = {}
+    for v in index["views"]:
+        w, h = v["width"], v["height"]
+        out[(v["frame"], v["camera"])] = dict(
+            hull=load(v["hull"], w, h), rect=load(v["rect"], w, h),
+            vehicles=[dict(track=x["track"], distance_m=x["distance_m"], hull=load(x["hull"], w, h),
+                           rect=load(x["rect"], w, h)) for x in v["vehicles"]])
+    return out
+
+
+def _mask(Image, path, w, h):
+    m = np.asarray(Image.open(path).convert("L"))
+    assert m.shape == (h, w), f"{path}: a {m.shape[1]}x{m.shape[0]} mask for a {w}x{h} view"
+    return m >= 128
+
+
+def vehicle_scores(per_image):
+    """recon::eval_vehicle::summarise on [(image sums, [pair sums])], each sums dict(track, distance_m,
+    hull=(pixels, sq_err, ssim), rect=...): per-image mean PSNR over non-empty masks, pooled PSNR, SSIM
+    over the masked pixels, pairs and per vehicle."""
+    psnr = lambda px, sq: (float("inf") if sq <= 0 else -10 * math.log10(sq / (3 * px))) if px > 0 else None
+    out = {}
+    for kind in ("hull", "rect"):
+        shown = [img[kind] for img, _ in per_image if img[kind][0] > 0]
+        px, sq, ss = (sum(x[k] for x in shown) for k in range(3))
+        ps = [psnr(x[0], x[1]) for x in shown]
+        pairs = [p for _, pp in per_image for p in pp if p[kind][0] > 0]
+        qpx, qsq, qss = (sum(p[kind][k] for p in pairs) for k in range(3))
+        by = {}
+        for p in pairs:
+            e = by.setdefault(p["track"], [0, 0, 0.0, 0.0, float("inf")])
+            e[0] += 1
+            e[1] += p[kind][0]
+            e[2] += p[kind][1]
+            e[3] += p[kind][2]
+            e[4] = min(e[4], p["distance_m"])
+        out[kind] = dict(images=len(shown), images_scored=len(per_image),
+                         image_mean_psnr=float(np.mean(ps)) if ps else None, pooled_psnr=psnr(px, sq),
+                         ssim=ss / px if px else None, pixels=int(px), pairs=len(pairs), pairs_psnr=psnr(qpx, qsq),
+                         pairs_ssim=qss / qpx if qpx else None,
+                         per_vehicle=[dict(track=t, pairs=e[0], pixels=int(e[1]), psnr=psnr(e[1], e[2]),
+                                           ssim=e[3] / e[1] if e[1] else None, nearest_m=e[4]) for t, e in sorted(by.items())])
+    return out
 
 
 def main():
@@ -252,6 +309,8 @@ def main():
     ap.add_argument("--no-opacity-reset", action="store_true",
                     help="stock gsplat 1.5.3 behaviour: its DefaultStrategy never resets opacities (see notes)")
     ap.add_argument("--check-data", action="store_true", help="load views and PLY only (no torch), print a summary")
+    ap.add_argument("--vehicle-masks", help="score the moving vehicles' pixels too, on the masks `carla-gs eval-recon "
+                    "--vehicle-masks DIR` wrote (the same pixels as carla-gs's moving_vehicle_appearance)")
     a = ap.parse_args()
     counts = sorted({int(x) for x in a.iters.split(",")})
 
@@ -261,6 +320,7 @@ def main():
     held_out_every = int(record["held_out_every"])
     scale = float(record["scale"])
     views = load_views(a.scene, scale, held_out_every)
+    masks = load_vehicle_masks(a.vehicle_masks) if a.vehicle_masks else None
     g0 = init_gaussians(read_ply(os.path.join(a.init, record["background_file"] or "background.ply")))
     # A scene with tracked objects (PandaSet): gsplat is plain 3DGS, so it trains carla-gs's
     # background start alone (the LiDAR points outside the tracked boxes) on the whole images,
@@ -341,16 +401,28 @@ def main():
                 packed=False, absgrad=False, render_mode="RGB", backgrounds=None)
             return img[0], info  # [H, W, 3], black where alpha < 1
 
-        def evaluate(idx):
-            ps, ss = [], []
+        def evaluate(idx, with_masks=False):
+            ps, ss, per_image = [], [], []
             with torch.no_grad():
                 for i in idx:
                     img, _ = render(i, sh_degree)
                     img = img.clamp(0, 1)
                     mse = torch.mean((img - imgs[i]) ** 2).item()
                     ps.append(float("inf") if mse <= 0 else -10 * math.log10(mse))
-                    ss.append(ssim(torch, img, imgs[i], window).item())
-            return dict(psnr=float(np.mean(ps)), ssim=float(np.mean(ss)), views=len(idx))
+                    smap = ssim_map(torch, img, imgs[i], window)
+                    ss.append(smap.mean().item())
+                    if with_masks:
+                        m = masks[(views[i]["frame"], views[i]["camera"])]
+                        sq = ((img - imgs[i]) ** 2).sum(-1).double().cpu().numpy()
+                        sm = smap.double().cpu().numpy()
+                        sums = lambda mk: (int(mk.sum()), float(sq[mk].sum()), float(sm[mk].sum()))
+                        per_image.append((dict(hull=sums(m["hull"]), rect=sums(m["rect"])),
+                                          [dict(track=x["track"], distance_m=x["distance_m"], hull=sums(x["hull"]),
+                                                rect=sums(x["rect"])) for x in m["vehicles"]]))
+            r = dict(psnr=float(np.mean(ps)), ssim=float(np.mean(ss)), views=len(idx))
+            if with_masks:
+                r["moving_vehicle_appearance"] = vehicle_scores(per_image)
+            return r
 
         order = []
         torch.cuda.empty_cache()
@@ -386,7 +458,7 @@ def main():
         r = dict(iterations=total, train_seconds=train_s, iterations_per_second=total / train_s,
                  gaussians=int(len(params["means"])), peak_memory_bytes=int(torch.cuda.max_memory_allocated()),
                  schedule=dict(densify_from=d_from, densify_until=d_until, opacity_reset_every=d_reset),
-                 last_loss=float(loss.item()), held_out=evaluate(held_idx))
+                 last_loss=float(loss.item()), held_out=evaluate(held_idx, masks is not None))
         if a.eval_train:
             r["train"] = evaluate(train_idx)
         return r

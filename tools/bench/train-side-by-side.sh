@@ -23,6 +23,8 @@
 # torch.cuda.max_memory_allocated (tensors only) is reported too.
 # GSPLAT_ARGS (environment) is passed to gsplat_train.py, e.g. GSPLAT_ARGS=--no-opacity-reset for stock
 # gsplat 1.5.3 (its DefaultStrategy never resets opacities; by default the script resets them as we do).
+# VEHICLE_MASKS (environment): a folder for the moving-vehicle masks (recon::vehicle_masks); our eval-recon
+# writes them there when it does not exist (else reads them) and gsplat is scored on the same pixels.
 # ONLY=ours or ONLY=gsplat runs one tool (a long count split over two back-to-back calls on one warm
 # machine). Our checkpoints are off during the timed run (checkpoint_interval = 0, a file written here), so
 # ours does not pay for disk writes that gsplat does not do; the model is still written at the end.
@@ -71,11 +73,12 @@ for n in $(echo "$iters" | tr ',' ' '); do
     --scale "$scale" --iters "$n" --device cuda
   t1=$(date +%s.%N)
   echo "$t0 $t1" > "$out/ours-$n.wall"
-  "$bin" eval-recon "$out/ours-$n" "$out/scene" --json --device cuda > "$out/ours-$n-eval.json"
+  "$bin" eval-recon "$out/ours-$n" "$out/scene" --json --device cuda ${VEHICLE_MASKS:+--vehicle-masks "$VEHICLE_MASKS"} \
+    > "$out/ours-$n-eval.json"
   fi
   [ "${ONLY:-}" = ours ] && continue
   sample_peak "$out/gsplat-$n.gpu-mem" python3 "$here/gsplat_train.py" --scene "$out/scene" --init "$out/init" \
-    --iters "$n" --out "$out/gsplat-$n.json" ${GSPLAT_ARGS:-}
+    --iters "$n" --out "$out/gsplat-$n.json" ${VEHICLE_MASKS:+--vehicle-masks "$VEHICLE_MASKS"} ${GSPLAT_ARGS:-}
 done
 
 # The table covers every count done so far in <out dir> (a run split over calls gets one table).
@@ -106,6 +109,20 @@ for n in iters:
     lines.append(f"| {n} | gsplat {g['gsplat']} (torch max allocated {r['peak_memory_bytes'] / 2**20:,.0f} MiB) | {q['s']:.1f} | {q['its']:.1f} | {q['n']:,} | {q['mem']:,} | {q['psnr']:.2f} | {q['ssim']:.4f} |")
     lines.append(f"| {n} | ratio ours/gsplat | {o['s'] / q['s']:.2f} | {o['its'] / q['its']:.2f} | {o['n'] / q['n']:.2f} | {o['mem'] / max(q['mem'], 1):.2f} | "
                  f"{o['psnr'] - q['psnr']:+.2f} dB | {o['ssim'] - q['ssim']:+.4f} |")
+# The moving vehicles' pixels (recon::eval_vehicle), where both were scored on the same masks.
+vm = ["", "| iterations | tool | mask | PSNR per image (images) | pooled PSNR | SSIM | pairs |", "|---|---|---|---|---|---|---|"]
+fmt = lambda x, p=2: "n/a" if x is None else f"{x:.{p}f}"
+for n in iters:
+    e = json.load(open(f"{out}/ours-{n}-eval.json")).get("moving_vehicle_appearance")
+    gj = f"{out}/gsplat-{n}.json"
+    ga = json.load(open(gj))["results"][0]["held_out"].get("moving_vehicle_appearance") if os.path.exists(gj) else None
+    for tool, a in (("carla-gs", e), ("gsplat", ga)):
+        for kind in ("hull", "rect"):
+            if a:
+                m = a[kind]
+                vm.append(f"| {n} | {tool} | {kind} | {fmt(m['image_mean_psnr'])} ({m['images']}) | {fmt(m['pooled_psnr'])} | {fmt(m['ssim'], 4)} | {m['pairs']} |")
+if len(vm) > 3:
+    lines += vm
 if g is not None:
     lines += ["", f"{os.path.basename(os.path.dirname(out + '/'))}: scale {g['scale']} ({g['size'][0]}x{g['size'][1]}), {g['train_views']} training / {g['held_out_views']} held-out views, "
               f"same {g['gaussians_init']:,} initial Gaussians (carla-gs's start). Held-out PSNR/SSIM: ours with its learned sky, "

@@ -17,9 +17,13 @@ use std::path::Path;
 pub struct View {
     pub frame: usize,
     pub camera: String,
-    /// Log time (s) of the frame: actors are placed where the log boxed them at this frame.
-    /// (The camera's pose is at the image's own time where the scene has one.)
+    /// Log time (s) the actors are placed at: the frame's, where the log boxed them (or the
+    /// image's own with `TrainConfig::actors_at_image_time`). (The camera's pose is at the image's
+    /// own time where the scene has one.)
     pub time: f64,
+    /// The image's own capture time on the log clock (the frame's where the scene has none): where
+    /// the vehicles the image shows are (`eval_vehicle`, `protocol`).
+    pub image_time: f64,
     pub cam: splat::Camera,
     pub targets: Targets,
     pub held_out: bool,
@@ -84,31 +88,60 @@ pub fn load_views(
     progress: &ProgressBar,
 ) -> Result<Vec<View>, ReconError> {
     let keep = set.keeps(scene, held_out_every);
-    let mut jobs = Vec::new();
+    let stubs = view_stubs(scene, scale, held_out_every, &keep)?;
+    if stubs.is_empty() {
+        return Err(ReconError::Input(format!("{}: the scene has no camera images", scene_dir.display())));
+    }
+    load_images(scene_dir, scene, stubs, priors, progress)
+}
+
+/// The views of the frames `keep` accepts, cameras and times only (no image is read): what the
+/// protocols choose their pairs by before any image is loaded.
+pub fn view_stubs(
+    scene: &Scene,
+    scale: f64,
+    held_out_every: usize,
+    keep: &dyn Fn(usize) -> bool,
+) -> Result<Vec<View>, ReconError> {
+    let mut out = Vec::new();
     for f in scene.frames.iter().filter(|f| keep(f.index)) {
         for im in &f.images {
             let cam = scene
                 .camera(&im.camera)
                 .ok_or_else(|| ReconError::Input(format!("frame {}: unknown camera {}", f.index, im.camera)))?;
-            jobs.push((f, im, cam));
-        }
-    }
-    if jobs.is_empty() {
-        return Err(ReconError::Input(format!("{}: the scene has no camera images", scene_dir.display())));
-    }
-    progress.set_length(jobs.len() as u64);
-    jobs.par_iter()
-        .map(|(f, im, cam)| {
-            let sc = splat_camera(cam, &scene.world_from_ego_of_image(f, im), scale)?;
-            let rgb = load_rgb(&scene_dir.join(&im.path), cam, sc.width, sc.height)?;
-            let mut view = View {
+            out.push(View {
                 frame: f.index,
                 camera: im.camera.clone(),
                 time: f.timestamp_s,
-                cam: sc,
-                targets: Targets { rgb, ..Default::default() },
+                image_time: im.timestamp_s.unwrap_or(f.timestamp_s),
+                cam: splat_camera(cam, &scene.world_from_ego_of_image(f, im), scale)?,
+                targets: Targets::default(),
                 held_out: is_held_out(f.index, held_out_every),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Reads each stub's image (and its priors) at the stub's size.
+pub fn load_images(
+    scene_dir: &Path,
+    scene: &Scene,
+    stubs: Vec<View>,
+    priors: &PriorLoader,
+    progress: &ProgressBar,
+) -> Result<Vec<View>, ReconError> {
+    progress.set_length(stubs.len() as u64);
+    stubs
+        .into_par_iter()
+        .map(|mut view| {
+            let f = scene.frames.iter().find(|f| f.index == view.frame);
+            let im = f.and_then(|f| f.images.iter().find(|i| i.camera == view.camera));
+            let (Some(im), Some(cam)) = (im, scene.camera(&view.camera)) else {
+                return Err(ReconError::Input(format!("frame {}: no image of camera {}", view.frame, view.camera)));
             };
+            let rgb = load_rgb(&scene_dir.join(&im.path), cam, view.cam.width, view.cam.height)?;
+            view.targets = Targets { rgb, ..Default::default() };
             if let Some(t) = priors(&view)? {
                 view.targets = Targets { rgb: view.targets.rgb, ..t };
             }

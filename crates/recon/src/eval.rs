@@ -5,14 +5,17 @@
 //! pixel); actor-only mask IoU against the ground-truth instances (every actor together, and each
 //! actor alone where it covers at least 50 pixels); on real logs, each moving vehicle's silhouette
 //! against its logged box's projected hull and profile and, where the view's frame has a sweep, the
-//! silhouette the LiDAR measured (`eval_boxes`, `eval_lidar`). Means are over the views that have the value;
-//! the number of views behind each mean is reported beside it.
+//! silhouette the LiDAR measured (`eval_boxes`, `eval_lidar`); on every scene, the moving vehicles'
+//! appearance on the log's own pixels, PSNR and SSIM inside their projected boxes (`eval_vehicle`).
+//! Means are over the views that have the value; the number of views behind each mean is reported
+//! beside it.
 
 use crate::backend::Backend;
 use crate::compose::Layers;
 use crate::data::{PriorLoader, View};
 use crate::error::ReconError;
 use crate::eval_lidar::Sweep;
+use crate::eval_vehicle::ViewMasks;
 use crate::metrics::{iou, normal_errors, psnr, ssim_rgb};
 use crate::model::SceneModel;
 use crate::view::draw;
@@ -45,6 +48,12 @@ pub struct ViewScore {
     /// scored: counted, not scored.
     #[serde(default)]
     pub moving_vehicle_too_small: usize,
+    /// The union of the moving vehicles' masks in this view (`eval_vehicle`), when it has any.
+    #[serde(default)]
+    pub vehicle_image: Option<crate::eval_vehicle::Scored>,
+    /// Each moving vehicle's own masks in this view.
+    #[serde(default)]
+    pub vehicle_pairs: Vec<crate::eval_vehicle::Scored>,
 }
 
 /// A mean and how many values it is over.
@@ -101,6 +110,13 @@ pub struct EvalReport {
     /// (`ViewScore::moving_vehicle_too_small`, summed): more at a reduced scale.
     #[serde(default)]
     pub moving_vehicle_too_small: usize,
+    /// The moving vehicles' PSNR and SSIM inside their projected boxes (`eval_vehicle`): per image,
+    /// pooled and per vehicle, under the hull and the rectangle masks.
+    #[serde(default)]
+    pub moving_vehicle_appearance: Option<crate::eval_vehicle::Appearance>,
+    /// For a model trained under a protocol (`protocol`): its left-out vehicle pixels, scored.
+    #[serde(default)]
+    pub protocol: Option<crate::eval_protocol::ProtocolReport>,
     pub lpips: Option<f64>,
     pub per_view: Vec<ViewScore>,
 }
@@ -112,6 +128,7 @@ fn score<B: Backend>(
     scene_dir: &Path,
     v: &View,
     sweep: Option<&Sweep>,
+    masks: &ViewMasks,
 ) -> Result<ViewScore, ReconError> {
     let d = draw(backend, model, scene, &v.cam, v.time, Layers::All, &|_| None);
     let t = &v.targets;
@@ -127,6 +144,16 @@ fn score<B: Backend>(
         ),
         ..Default::default()
     };
+    // Every scored view counts (an empty union scores nothing); the SSIM map only where needed.
+    let map = if masks.hull.iter().chain(&masks.rect).any(|x| *x) {
+        let clamped: Vec<[f64; 3]> = d.rgb.iter().map(|p| p.map(|x| x.clamp(0.0, 1.0))).collect();
+        let target: Vec<[f64; 3]> = t.rgb.iter().map(|p| p.map(f64::from)).collect();
+        crate::ssim::ssim_map_rgb(&clamped, &target, d.width, d.height)
+    } else {
+        vec![0.0; d.rgb.len()]
+    };
+    let (image, pairs) = masks.score(v, &d.rgb, &t.rgb, &map);
+    (s.vehicle_image, s.vehicle_pairs) = (Some(image), pairs);
     let in_m = |i: usize| t.mask.as_ref().is_some_and(|m| m[i]);
     if let Some(nref) = &t.normal {
         let nref: Vec<[f64; 3]> = nref.iter().map(|n| n.map(f64::from)).collect();
@@ -169,6 +196,21 @@ fn clear(per_view: &[ViewScore]) -> impl Iterator<Item = &crate::eval_boxes::Veh
     per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter(|x| x.clear()))
 }
 
+/// The views `evaluate` scores: the held-out ones, or every view when none is held out.
+pub fn scored_views(views: &[View]) -> Vec<&View> {
+    let held: Vec<&View> = views.iter().filter(|v| v.held_out).collect();
+    if held.is_empty() {
+        views.iter().collect()
+    } else {
+        held
+    }
+}
+
+/// The moving-vehicle masks of view `v` computed from the scene (`eval_vehicle`).
+pub fn vehicle_masks_of(scene: &Scene, v: &View) -> ViewMasks {
+    ViewMasks::of(&crate::eval_vehicle::moving_vehicles(scene, v), v.width(), v.height())
+}
+
 /// Scores the held-out views of `views` (every view when none is held out).
 pub fn evaluate<B: Backend>(
     backend: &B,
@@ -177,8 +219,24 @@ pub fn evaluate<B: Backend>(
     scene_dir: &Path,
     views: &[View],
 ) -> Result<EvalReport, ReconError> {
-    let held: Vec<&View> = views.iter().filter(|v| v.held_out).collect();
-    let chosen: Vec<&View> = if held.is_empty() { views.iter().collect() } else { held };
+    let chosen = scored_views(views);
+    let masks: BTreeMap<(usize, String), ViewMasks> =
+        chosen.iter().map(|v| ((v.frame, v.camera.clone()), vehicle_masks_of(scene, v))).collect();
+    evaluate_with_masks(backend, model, scene, scene_dir, views, &masks)
+}
+
+/// [`evaluate`] with the moving-vehicle masks given (`vehicle_masks::read`), keyed by frame and
+/// camera; every scored view must have its entry.
+pub fn evaluate_with_masks<B: Backend>(
+    backend: &B,
+    model: &SceneModel,
+    scene: &Scene,
+    scene_dir: &Path,
+    views: &[View],
+    masks: &BTreeMap<(usize, String), ViewMasks>,
+) -> Result<EvalReport, ReconError> {
+    let chosen = scored_views(views);
+    let none = ViewMasks::default();
     // Each frame's own sweep, read once for all of its cameras' views.
     let frames: std::collections::BTreeSet<usize> = chosen.iter().map(|v| v.frame).collect();
     let mut sweeps: BTreeMap<usize, Sweep> = BTreeMap::new();
@@ -189,8 +247,14 @@ pub fn evaluate<B: Backend>(
     }
     let per_view: Vec<ViewScore> = chosen
         .par_iter()
-        .map(|v| score(backend, model, scene, scene_dir, v, sweeps.get(&v.frame)))
+        .map(|v| {
+            let m = masks.get(&(v.frame, v.camera.clone())).unwrap_or(&none);
+            score(backend, model, scene, scene_dir, v, sweeps.get(&v.frame), m)
+        })
         .collect::<Result<_, _>>()?;
+    let images: Vec<_> = per_view.iter().filter_map(|s| s.vehicle_image.clone()).collect();
+    let pairs: Vec<_> = per_view.iter().flat_map(|s| s.vehicle_pairs.iter().cloned()).collect();
+    let appearance = (!images.is_empty()).then(|| crate::eval_vehicle::summarise(&images, &pairs));
     let pick = |f: &dyn Fn(&ViewScore) -> Option<f64>| mean(per_view.iter().filter_map(f));
     Ok(EvalReport {
         views: per_view.len(),
@@ -221,6 +285,8 @@ pub fn evaluate<B: Backend>(
             per_view.iter().flat_map(|s| s.moving_vehicle_iou.iter().filter_map(|x| x.profile_recall())),
         ),
         moving_vehicle_too_small: per_view.iter().map(|s| s.moving_vehicle_too_small).sum(),
+        moving_vehicle_appearance: appearance,
+        protocol: None,
         lpips: None,
         per_view,
     })
@@ -256,6 +322,46 @@ pub fn evaluate_model_dir<B: Backend>(
     scene_dir: &Path,
     priors: &PriorLoader,
 ) -> Result<EvalReport, ReconError> {
+    Ok(evaluate_model_dir_with(backend, model_dir, scene_dir, priors, None)?.0)
+}
+
+/// Where `evaluate_model_dir_with` took the moving-vehicle masks from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MasksFrom {
+    /// Computed from the scene (no folder given).
+    Scene,
+    /// Computed from the scene and written to the folder (it did not exist).
+    Written,
+    /// Read from the folder (`vehicle_masks::read`).
+    Read,
+}
+
+/// [`evaluate_model_dir`] with the moving-vehicle masks in folder `masks_dir`: read from it when
+/// it exists, else computed from the scene and written there (a new folder, whole or not at all).
+pub fn evaluate_model_dir_with<B: Backend>(
+    backend: &B,
+    model_dir: &Path,
+    scene_dir: &Path,
+    priors: &PriorLoader,
+    masks_dir: Option<&Path>,
+) -> Result<(EvalReport, MasksFrom), ReconError> {
     let (model, scene, views) = load_model_and_views(model_dir, scene_dir, priors)?;
-    evaluate(backend, &model, &scene, scene_dir, &views)
+    let cfg = crate::model_io::load_config(model_dir)?;
+    let chosen = scored_views(&views);
+    let (mut report, from) = match masks_dir {
+        None => (evaluate(backend, &model, &scene, scene_dir, &views)?, MasksFrom::Scene),
+        Some(dir) if dir.exists() => {
+            let masks = crate::vehicle_masks::read(dir, &scene.name, &chosen)?;
+            (evaluate_with_masks(backend, &model, &scene, scene_dir, &views, &masks)?, MasksFrom::Read)
+        }
+        Some(dir) => {
+            let masks: Vec<ViewMasks> = chosen.iter().map(|v| vehicle_masks_of(&scene, v)).collect();
+            let pairs: Vec<(&View, &ViewMasks)> = chosen.iter().copied().zip(&masks).collect();
+            crate::vehicle_masks::write(dir, &scene.name, &pairs)?;
+            let keyed = chosen.iter().zip(masks).map(|(v, m)| ((v.frame, v.camera.clone()), m)).collect();
+            (evaluate_with_masks(backend, &model, &scene, scene_dir, &views, &keyed)?, MasksFrom::Written)
+        }
+    };
+    report.protocol = crate::eval_protocol::evaluate_protocol(backend, &model, &scene, scene_dir, &cfg)?;
+    Ok((report, from))
 }

@@ -46,7 +46,7 @@ pub const CLEAR_MIN_VISIBLE: f64 = 0.5;
 /// ...and its hull is at least this many pixels tall at the camera's stored size.
 pub const CLEAR_MIN_HEIGHT_PX: f64 = 25.0;
 
-fn moving(s: &TrackState) -> bool {
+pub(crate) fn moving(s: &TrackState) -> bool {
     match s.motion {
         Some(m) => m == LoggedMotion::Moving,
         None => s.velocity.is_some_and(|v| v.truncate().length() > MOVING_SPEED),
@@ -306,7 +306,15 @@ mod tests {
             near: 0.01,
             far: 1e4,
         };
-        let v = View { frame: 0, camera: "C".into(), time: 0.0, cam, targets: Default::default(), held_out: true };
+        let v = View {
+            frame: 0,
+            camera: "C".into(),
+            time: 0.0,
+            image_time: 0.0,
+            cam,
+            targets: Default::default(),
+            held_out: true,
+        };
         let s = TrackState {
             frame: 0,
             center: DVec3::new(10.0, 0.0, 0.0),

@@ -125,7 +125,7 @@ mod tests {
         let cam = splat::Camera::at_origin(20, 10, 10.0);
         let rgb = vec![[1.0, 0.5, 0.0]; 200];
         let targets = crate::loss::Targets { rgb, ..Default::default() };
-        let v = View { frame: 3, camera: "C".into(), time: 0.0, cam, targets, held_out: true };
+        let v = View { frame: 3, camera: "C".into(), time: 0.0, image_time: 0.0, cam, targets, held_out: true };
         let (mut rendered, mut profile, mut hidden) = (vec![false; 200], vec![false; 200], vec![false; 200]);
         // Row 5: x 8..10 both, 10..12 profile only, 12..13 render only, 13 hidden.
         (8..10).for_each(|x| (rendered[100 + x], profile[100 + x]) = (true, true));

@@ -59,6 +59,21 @@ pub fn blur(src: &[f64], width: usize, height: usize) -> Vec<f64> {
 
 /// Mean SSIM of one channel pair and, when `grad` is given, `d meanSSIM / d x` written into it.
 pub fn ssim_channel(x: &[f64], y: &[f64], width: usize, height: usize, grad: Option<&mut [f64]>) -> f64 {
+    ssim_channel_with(x, y, width, height, None, grad, None)
+}
+
+/// [`ssim_channel`] with a weight per window centre (`keep`, 0 to leave a pixel's window out of
+/// the mean: the sum of `keep * S` over the pixel count, and its gradient), and the map `S` itself
+/// written into `map` when given (unweighted).
+pub fn ssim_channel_with(
+    x: &[f64],
+    y: &[f64],
+    width: usize,
+    height: usize,
+    keep: Option<&[f64]>,
+    grad: Option<&mut [f64]>,
+    mut map: Option<&mut [f64]>,
+) -> f64 {
     let n = x.len();
     let mu_x = blur(x, width, height);
     let mu_y = blur(y, width, height);
@@ -76,10 +91,15 @@ pub fn ssim_channel(x: &[f64], y: &[f64], width: usize, height: usize, grad: Opt
         let b1 = mx * mx + my * my + C1;
         let b2 = (exx[i] - mx * mx) + (eyy[i] - my * my) + C2;
         let s = a1 * a2 / (b1 * b2);
-        s_map[i] = s;
-        d_mu[i] = inv_n * (2.0 * my * (a2 - a1) / (b1 * b2) - 2.0 * mx * s * (1.0 / b1 - 1.0 / b2));
-        d_xx[i] = inv_n * (-s / b2);
-        d_xy[i] = inv_n * (2.0 * a1 / (b1 * b2));
+        if let Some(m) = map.as_deref_mut() {
+            m[i] = s;
+        }
+        // Without weights the arithmetic is the plain mean's, bit for bit.
+        let k = keep.map_or(inv_n, |w| inv_n * w[i]);
+        s_map[i] = keep.map_or(s, |w| s * w[i]);
+        d_mu[i] = k * (2.0 * my * (a2 - a1) / (b1 * b2) - 2.0 * mx * s * (1.0 / b1 - 1.0 / b2));
+        d_xx[i] = k * (-s / b2);
+        d_xy[i] = k * (2.0 * a1 / (b1 * b2));
     }
     if let Some(g) = grad {
         let (g_mu, g_xx, g_xy) = (blur(&d_mu, width, height), blur(&d_xx, width, height), blur(&d_xy, width, height));
@@ -101,6 +121,22 @@ pub fn ssim_rgb(x: &[[f64; 3]], y: &[[f64; 3]], width: usize, height: usize) -> 
         })
         .sum::<f64>()
         / 3.0
+}
+
+/// The SSIM map of RGB images (values 0..1), averaged over the three channels per pixel: the
+/// score of the window centred on each pixel, for means over a mask.
+pub fn ssim_map_rgb(x: &[[f64; 3]], y: &[[f64; 3]], width: usize, height: usize) -> Vec<f64> {
+    let maps: Vec<Vec<f64>> = (0..3)
+        .into_par_iter()
+        .map(|c| {
+            let xc: Vec<f64> = x.iter().map(|p| p[c]).collect();
+            let yc: Vec<f64> = y.iter().map(|p| p[c]).collect();
+            let mut m = vec![0.0; xc.len()];
+            ssim_channel_with(&xc, &yc, width, height, None, None, Some(&mut m));
+            m
+        })
+        .collect();
+    (0..x.len()).map(|i| (maps[0][i] + maps[1][i] + maps[2][i]) / 3.0).collect()
 }
 
 #[cfg(test)]
@@ -164,5 +200,32 @@ mod tests {
             let fd = (ssim_channel(&xp, &y, w, h, None) - s0) / eps;
             assert!((fd - g[i]).abs() < 1e-6 * (1.0 + fd.abs()), "pixel {i}: fd {fd} analytic {}", g[i]);
         }
+    }
+
+    #[test]
+    fn weighted_windows_and_the_map() {
+        let (w, h) = (19, 14);
+        let (x, y) = (pattern(w, h, 0.0), pattern(w, h, 1.7));
+        // The map's mean is the score; weights of one change nothing.
+        let mut map = vec![0.0; w * h];
+        let plain = ssim_channel_with(&x, &y, w, h, None, None, Some(&mut map));
+        assert!((map.iter().sum::<f64>() / (w * h) as f64 - plain).abs() < 1e-12);
+        let ones = vec![1.0; w * h];
+        assert_eq!(ssim_channel_with(&x, &y, w, h, Some(&ones), None, None).to_bits(), plain.to_bits());
+        // A window left out: the weighted mean, and its gradient by finite differences.
+        let keep: Vec<f64> = (0..w * h).map(|i| if i % w < 7 { 0.0 } else { 1.0 }).collect();
+        let mut g = vec![0.0; w * h];
+        let s0 = ssim_channel_with(&x, &y, w, h, Some(&keep), Some(&mut g), None);
+        let want: f64 = map.iter().zip(&keep).map(|(m, k)| m * k).sum::<f64>() / (w * h) as f64;
+        assert!((s0 - want).abs() < 1e-12);
+        let eps = 1e-6;
+        for i in [0, 3, w + 9, w * h / 2, w * h - 1] {
+            let mut xp = x.clone();
+            xp[i] += eps;
+            let fd = (ssim_channel_with(&xp, &y, w, h, Some(&keep), None, None) - s0) / eps;
+            assert!((fd - g[i]).abs() < 1e-6 * (1.0 + fd.abs()), "pixel {i}: fd {fd} analytic {}", g[i]);
+        }
+        // Pixel 0 lies more than a window's radius from every kept centre: no gradient.
+        assert_eq!(g[0], 0.0);
     }
 }

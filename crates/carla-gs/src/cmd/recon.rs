@@ -160,6 +160,11 @@ pub struct EvalArgs {
     /// every pixel classed) into this new directory, with `pairs.csv` (docs/pandaset.md).
     #[arg(long)]
     pair_masks: Option<PathBuf>,
+    /// The moving-vehicle masks the appearance scores use (docs/recon.md, "Moving vehicles on the
+    /// log's pixels"): read from this directory when it exists, else computed and written there,
+    /// so another tool (tools/bench/gsplat_train.py) scores the same pixels.
+    #[arg(long)]
+    vehicle_masks: Option<PathBuf>,
 }
 
 /// The report of `a` on `backend`, and the pair pictures if asked for.
@@ -168,7 +173,12 @@ fn eval_on<B: recon::backend::Backend>(
     a: &EvalArgs,
     priors: &recon::data::PriorLoader,
 ) -> anyhow::Result<recon::eval::EvalReport> {
-    let r = recon::eval::evaluate_model_dir(backend, &a.model, &a.scene, priors)?;
+    let (r, from) =
+        recon::eval::evaluate_model_dir_with(backend, &a.model, &a.scene, priors, a.vehicle_masks.as_deref())?;
+    if let Some(dir) = &a.vehicle_masks {
+        let verb = if from == recon::eval::MasksFrom::Read { "read" } else { "wrote" };
+        eprintln!("{verb} the moving-vehicle masks {} {}", if verb == "read" { "from" } else { "->" }, dir.display());
+    }
     if let Some(dir) = &a.pair_masks {
         let n = recon::eval_pair_png::write_pair_masks(backend, &a.model, &a.scene, priors, dir)?;
         eprintln!("wrote {n} pair pictures and pairs.csv -> {}", dir.display());
@@ -222,6 +232,21 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
             "{:<28} {:>9}  (pairs under {min} px at this scale)",
             "  not scored: too small", r.moving_vehicle_too_small
         );
+    }
+    if let Some(app) = &r.moving_vehicle_appearance {
+        for (name, m) in [("hull", &app.hull), ("rect", &app.rect)] {
+            let db = |x: Option<f64>| x.map_or("n/a".to_string(), |v| format!("{v:.2} dB"));
+            println!(
+                "moving vehicles, {name:<4}: PSNR per image {} ({} of {} images), pooled {}, SSIM {} ({} pairs, {} px)",
+                db(m.image_mean_psnr),
+                m.images,
+                m.images_scored,
+                db(m.pooled_psnr),
+                m.ssim.map_or("n/a".to_string(), |v| format!("{v:.4}")),
+                m.pairs,
+                m.pixels
+            );
+        }
     }
     println!("{:<28} {:>9}  (needs network weights that cannot be fetched here)", "LPIPS", "n/a");
     Ok(())
