@@ -84,6 +84,9 @@ pub fn sizes(cfg: &crate::TrainConfig) -> Result<(), String> {
     within("densify.actor_sigma", d.actor_sigma, 0.0, MAX_ACTOR_SIGMA)?;
     within("init.voxel_m", i.voxel_m, 1e-6, 1e6)?;
     within("init.opacity", i.opacity, 1e-6, 1.0 - 1e-6)?;
+    if i.actor_opacity != 0.0 {
+        within("init.actor_opacity", i.actor_opacity, 1e-6, 1.0 - 1e-6)?;
+    }
     Ok(())
 }
 

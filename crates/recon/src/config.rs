@@ -25,6 +25,26 @@ pub struct TrainConfig {
     /// second to write, and on the device a download first), so a fixed interval alone cost a
     /// large run a fifth of its time; the result does not depend on when checkpoints are taken.
     pub checkpoint_min_seconds: f64,
+    /// Mip-Splatting's 2D filter: the screen-space low-pass (0.3 px^2) with its opacity
+    /// compensation (`splat::project`, antialiased), in training and wherever the model is drawn,
+    /// so a Gaussian drawn smaller or larger on screen than in training keeps its energy.
+    pub antialiased: bool,
+    /// Mip-Splatting's 3D smoothing filter (`smoothing`): each Gaussian is convolved with an
+    /// isotropic Gaussian of variance `filter_3d` times the square of the finest pixel footprint
+    /// any training view saw it with (Mip-Splatting: 0.2), so no Gaussian is finer than the
+    /// training images could tell, and a car drawn closer than the log saw it stays whole instead
+    /// of breaking into needles. 0: off. Baked into the saved model.
+    pub filter_3d: f64,
+    /// Vehicles (cars, vans, trucks, buses) are drawn with their mirror image about the box's long
+    /// vertical plane (y -> -y in the box frame): a side the log saw stands in for the side it did
+    /// not. Pedestrians and cyclists are not mirrored. Baked into the saved model.
+    pub mirror_vehicles: bool,
+    /// Place the actors at each image's own capture time rather than its frame's (`View::time`):
+    /// a PandaSet image is taken 39 to 61 ms before its frame, and a car at 10 m/s moves half a
+    /// metre meanwhile. Training, its filter, its start's colours and `eval-recon` all follow it.
+    pub actors_at_image_time: bool,
+    /// Pixels left out of training to measure how vehicle models hold up (`protocol`).
+    pub protocol: crate::protocol::Protocol,
     pub lr: LearningRates,
     pub loss: LossWeights,
     pub densify: DensifyConfig,
@@ -103,6 +123,13 @@ pub struct InitConfig {
     /// Points per actor (from LiDAR inside the box, topped up with random points in the box).
     pub actor_points: usize,
     pub opacity: f64,
+    /// The actors' starting opacity (0: `opacity`). A vehicle's surface the training views never
+    /// show keeps its start: at 0.1 a car's unseen side stays see-through; a car is opaque.
+    pub actor_opacity: f64,
+    /// Colour an actor's LiDAR point only from a view that sees it (its depth within a tolerance of
+    /// the depth prior there; `init::visible`), and give the points no view sees the actor's body
+    /// colour (the median of its seen points) instead of dropping them.
+    pub actor_visibility: bool,
     /// Stride (pixels at training scale) when back-projecting depth priors.
     pub depth_stride: usize,
     /// Surface-aligned start (`surface.rs`): neighbours per point for the local PCA (0: every
@@ -124,6 +151,11 @@ impl Default for TrainConfig {
             sh_degree_interval: 1000,
             checkpoint_interval: 500,
             checkpoint_min_seconds: 300.0,
+            antialiased: false,
+            filter_3d: 0.0,
+            mirror_vehicles: false,
+            actors_at_image_time: false,
+            protocol: crate::protocol::Protocol::None,
             lr: LearningRates::default(),
             loss: LossWeights::default(),
             densify: DensifyConfig::default(),
@@ -177,6 +209,8 @@ impl Default for InitConfig {
             random_points: 30_000,
             actor_points: 3000,
             opacity: 0.1,
+            actor_opacity: 0.0,
+            actor_visibility: false,
             depth_stride: 4,
             surface_neighbours: 16,
             surface_planarity: 0.1,
@@ -227,8 +261,21 @@ impl TrainConfig {
                     .into(),
             );
         }
+        if !(self.filter_3d.is_finite() && (0.0..=10.0).contains(&self.filter_3d)) {
+            return Err(format!(
+                "filter_3d must be a finite number in [0, 10] (pixels^2; Mip-Splatting: 0.2), got {}",
+                self.filter_3d
+            ));
+        }
         crate::budget::sizes(self)?;
         crate::budget::rates_and_weights(self)
+    }
+
+    /// Sets each view's actor time (`View::time`) to the clock these settings place actors on.
+    pub fn set_actor_clock(&self, views: &mut [crate::data::View]) {
+        if self.actors_at_image_time {
+            views.iter_mut().for_each(|v| v.time = v.image_time);
+        }
     }
 
     /// The densification window and opacity-reset period in iterations.
@@ -299,6 +346,9 @@ mod tests {
             ("[init]\nopacity = 1.5", "`init.opacity`"),
             ("checkpoint_min_seconds = -1", "checkpoint_min_seconds must be a finite number >= 0, got -1"),
             ("checkpoint_min_seconds = nan", "checkpoint_min_seconds"),
+            ("filter_3d = -0.2", "filter_3d must be a finite number in [0, 10]"),
+            ("filter_3d = nan", "filter_3d"),
+            ("protocol = \"closeup\"", "protocol"),
         ] {
             let e = TrainConfig::from_toml(text).unwrap_err();
             assert!(e.contains(key), "{text}: {e}");

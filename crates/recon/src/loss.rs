@@ -16,7 +16,7 @@
 // Index loops mirror the per-component formulas in the comments above.
 #![allow(clippy::needless_range_loop)]
 
-use crate::ssim::ssim_channel;
+use crate::ssim::ssim_channel_with;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -34,6 +34,19 @@ pub struct Targets {
     pub mask: Option<Vec<bool>>,
     /// `L_geo` pixel weights (zero outside M).
     pub geo_weight: Option<Vec<f32>>,
+    /// Pixels left out of training (`protocol`): 1 where the photometric loss counts a pixel, 0
+    /// where it does not (the depth, normal and geo targets are emptied there too), and the
+    /// SSIM weight of the window centred on each pixel (0 where the window reaches a left-out
+    /// pixel, so no left-out target value enters the loss). `None`: every pixel trains.
+    pub keep: Option<Vec<f32>>,
+    pub ssim_keep: Option<Vec<f32>>,
+}
+
+impl Targets {
+    /// Whether pixel `i` trains (`keep`).
+    pub fn keeps(&self, i: usize) -> bool {
+        self.keep.as_ref().is_none_or(|k| k[i] > 0.0)
+    }
 }
 
 /// Loss weights (the paper: 0.1 for each geometry term).
@@ -131,6 +144,9 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
     let inv = 1.0 / (3 * n) as f64;
     let mut l1 = 0.0;
     for i in 0..n {
+        if !t.keeps(i) {
+            continue;
+        }
         for c in 0..3 {
             let d = out[i][c] - t.rgb[i][c] as f64;
             l1 += d.abs();
@@ -138,6 +154,7 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
         }
     }
     parts.l1 = l1 * inv;
+    let ssim_keep: Option<Vec<f64>> = t.ssim_keep.as_ref().map(|k| k.iter().map(|v| *v as f64).collect());
     // The three channels' SSIM on every thread, combined in channel order (the same sums).
     let per_channel: Vec<(f64, Vec<f64>)> = (0..3)
         .into_par_iter()
@@ -145,7 +162,7 @@ pub fn view_loss(r: &Rendered, t: &Targets, w: &LossWeights, g: &mut ChannelGrad
             let x: Vec<f64> = out.iter().map(|p| p[c]).collect();
             let y: Vec<f64> = t.rgb.iter().map(|p| p[c] as f64).collect();
             let mut gs = vec![0.0; n];
-            (ssim_channel(&x, &y, r.width, r.height, Some(&mut gs)), gs)
+            (ssim_channel_with(&x, &y, r.width, r.height, ssim_keep.as_deref(), Some(&mut gs), None), gs)
         })
         .collect();
     let mut ssim = 0.0;

@@ -30,6 +30,10 @@ pub fn bytes_per_pixel(with_priors: bool) -> u64 {
     (rgb + if with_priors { priors } else { 0 }) as u64
 }
 
+/// A view with pixels left out of training (`protocol`) holds two more f32 a pixel
+/// (`Targets::keep`, `Targets::ssim_keep`).
+pub const LEFT_OUT_BYTES_PER_PIXEL: u64 = 8;
+
 /// Pixels of every image of `scene` at `scale` in the frames `keep` keeps, and the number of images.
 pub fn pixels_at(scene: &Scene, scale: f64, keep: &dyn Fn(usize) -> bool) -> (u64, usize) {
     let mut pixels = 0u64;
@@ -167,15 +171,19 @@ pub fn over_budget(
 /// Refuses when the views of `scene` at `scale` in the frames `keep` keeps need more than
 /// [`TARGET_SHARE`] of `available`. `training`: the scale can be chosen (the refusal names one that
 /// fits); else it is a trained model's (scoring), and the refusal says so.
+/// `extra_per_pixel` bytes a pixel come on top of the targets' own (`LEFT_OUT_BYTES_PER_PIXEL`
+/// under a protocol, counted for every view though only the views with left-out pixels hold them).
 pub fn check_views(
     scene: &Scene,
     scale: f64,
     with_priors: bool,
+    extra_per_pixel: u64,
     keep: &dyn Fn(usize) -> bool,
     training: bool,
     available: Option<u64>,
 ) -> Result<u64, ReconError> {
-    let need_at = |s: f64| pixels_at(scene, s, keep).0.saturating_mul(bytes_per_pixel(with_priors));
+    let per_pixel = bytes_per_pixel(with_priors) + extra_per_pixel;
+    let need_at = |s: f64| pixels_at(scene, s, keep).0.saturating_mul(per_pixel);
     let need = need_at(scale);
     let Some(available) = available else { return Ok(need) };
     let Some(hint) = over_budget(need, available, scale, training, &need_at) else { return Ok(need) };
@@ -266,6 +274,8 @@ mod tests {
             normal: Some(vec![Default::default(); n]),
             mask: Some(vec![Default::default(); n]),
             geo_weight: Some(vec![Default::default(); n]),
+            keep: None,
+            ssim_keep: None,
         };
         use std::mem::size_of_val as size;
         let priors = size(t.depth.as_deref().unwrap())

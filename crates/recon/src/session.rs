@@ -11,7 +11,7 @@ use crate::device::DeviceTrainer;
 use crate::error::ReconError;
 use crate::init::{initialise, scene_extent, InitReport};
 use crate::loss::LossParts;
-use crate::model_io::{write_model, ModelRecord};
+use crate::model_io::{write_model_with, ModelRecord};
 use crate::out_dir::{ForceMode, WorkDir};
 use crate::resume;
 use crate::train::{StepReport, Trainer};
@@ -71,11 +71,17 @@ pub fn prepare_views(
     if training {
         crate::camera::check_scale(&scene.cameras, cfg.scale)?;
     }
-    let targets = crate::memory::check_views(&scene, cfg.scale, with_priors, &keep, training, available)?;
+    let left_out = if training && cfg.protocol != crate::protocol::Protocol::None {
+        crate::memory::LEFT_OUT_BYTES_PER_PIXEL
+    } else {
+        0
+    };
+    let targets = crate::memory::check_views(&scene, cfg.scale, with_priors, left_out, &keep, training, available)?;
     if training {
         crate::memory::check_model(cfg, crate::init::actor_tracks(&scene).len(), targets, available)?;
     }
-    let views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, set, priors, &ProgressBar::hidden())?;
+    let mut views = load_views(scene_dir, &scene, cfg.scale, cfg.held_out_every, set, priors, &ProgressBar::hidden())?;
+    cfg.set_actor_clock(&mut views);
     Ok((scene, views))
 }
 
@@ -126,7 +132,17 @@ fn run_in<B: Backend>(
     progress: &ProgressBar,
 ) -> Result<TrainSummary, ReconError> {
     let cfg = req.cfg.clone();
-    let (scene, views) = prepare(req.scene_dir, &cfg, req.priors)?;
+    let (scene, mut views) = prepare(req.scene_dir, &cfg, req.priors)?;
+    let left_out = crate::protocol::apply(cfg.protocol, &scene, &mut views);
+    if cfg.protocol != crate::protocol::Protocol::None {
+        let vehicles: std::collections::BTreeSet<&str> = left_out.iter().map(|s| s.track.as_str()).collect();
+        tracing::info!(
+            protocol = cfg.protocol.as_str(),
+            pairs = left_out.len(),
+            vehicles = vehicles.len(),
+            "vehicle pixels left out of training"
+        );
+    }
     work.create()?;
     let out_dir = work.path();
     let ckpt_path = out_dir.join("checkpoint.bin");
@@ -156,6 +172,7 @@ fn run_in<B: Backend>(
         iterations_per_second: 0.0,
         init: None,
         last_loss: LossParts::default(),
+        antialiased: cfg.antialiased,
     };
     // The config is written before the first step so an interrupted run can be resumed.
     let toml = toml::to_string(&cfg).map_err(|e| ReconError::Config(e.to_string()))?;
@@ -214,7 +231,9 @@ fn run_in<B: Backend>(
     record.train_seconds = seconds;
     record.iterations_per_second = ran as f64 / seconds.max(1e-9);
     record.last_loss = last;
-    write_model(out_dir, &state.model, &mut record, &cfg, init.as_ref())?;
+    let mirrored = crate::train::mirrored_actors(&scene, state, &cfg);
+    let saved = crate::bake::baked(state, &cfg, &mirrored);
+    write_model_with(out_dir, &saved, &mut record, &cfg, init.as_ref(), &|ai| mirrored[ai])?;
     Ok(TrainSummary {
         iterations_done: done,
         seconds,

@@ -24,7 +24,14 @@ pub fn targets_from_priors(p: &PriorMaps, w: usize, h: usize) -> Targets {
         .collect();
     let mask = resample(&p.mask, p.width, p.height, w, h);
     let geo = geo_weights(&depth, &mask, w, h);
-    Targets { rgb: vec![], depth: Some(depth), normal: Some(normal), mask: Some(mask), geo_weight: Some(geo) }
+    Targets {
+        rgb: vec![],
+        depth: Some(depth),
+        normal: Some(normal),
+        mask: Some(mask),
+        geo_weight: Some(geo),
+        ..Default::default()
+    }
 }
 
 /// A loader of the scene's priors for `load_views`; with no `priors/` directory, views get none.

@@ -48,25 +48,27 @@ __device__ void pixel_taps(const CamK& cam, int i, int res, int* idx, float* w) 
 // 4 normal, 5 geo, 6 flattening (sum of the smallest scale).
 
 // Composite with the sky, L1 and its gradient (SSIM: ssim.cu).
+// `keep` (may be null: every pixel) is 0 where a pixel is left out of training (recon::protocol):
+// its L1 term and gradient are zero; the squared error (the reported PSNR) counts every pixel.
 extern "C" __global__ void photo_l1(int p, CamK cam, int sky_res, const float* sky, const float* rgb,
-                                    const float* alpha, const float* target, float w_l1, float* out,
-                                    float* g_out, unsigned long long* acc) {
+                                    const float* alpha, const float* target, const float* keep, float w_l1,
+                                    float* out, float* g_out, unsigned long long* acc) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     float l1 = 0.0f, sq = 0.0f;
     if (i < p) {
         int idx[4];
         float w[4];
         pixel_taps(cam, i, sky_res, idx, w);
-        float a = alpha[i];
+        float a = alpha[i], kp = keep ? keep[i] : 1.0f;
         for (int c = 0; c < 3; c++) {
             float s = 0.0f;
             for (int k = 0; k < 4; k++) s += w[k] * sky[idx[k] * 3 + c];
             float x = rgb[3 * i + c] + s * (1.0f - a), y = target[3 * i + c];
             float d = x - y;
-            l1 += fabsf(d);
+            l1 += kp * fabsf(d);
             sq += d * d;
             out[3 * i + c] = x;
-            g_out[3 * i + c] = w_l1 * copysignf(1.0f, d);
+            g_out[3 * i + c] = kp * w_l1 * copysignf(1.0f, d);
         }
     }
     warp_add(acc, 0, l1);

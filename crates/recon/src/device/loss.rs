@@ -108,29 +108,22 @@ pub(crate) fn launch(
     let win = Win::ssim();
     // SAFETY (every launch below): each buffer holds at least the pixels times channels the
     // kernel indexes (`Scratch::fit`, `ImageIo`, `ViewTargets` of this view's size).
+    let null = 0u64;
     unsafe {
-        s.launch_builder(&k.photo_l1)
-            .arg(&p32)
-            .arg(&ck)
-            .arg(&res)
-            .arg(sky.texels)
-            .arg(io.rgb)
-            .arg(io.alpha)
-            .arg(&t.rgb)
-            .arg(&w_l1)
-            .arg(&mut sc.out)
-            .arg(&mut sc.g_out)
-            .arg(&mut sc.acc)
-            .launch(linear(p))?;
-        s.launch_builder(&k.ssim_forward)
-            .arg(&width)
-            .arg(&height)
-            .arg(&win)
-            .arg(&sc.out)
-            .arg(&t.rgb)
-            .arg(&mut sc.terms)
-            .arg(&mut sc.acc)
-            .launch(tiles(cam, 1))?;
+        let mut b = s.launch_builder(&k.photo_l1);
+        b.arg(&p32).arg(&ck).arg(&res).arg(sky.texels).arg(io.rgb).arg(io.alpha).arg(&t.rgb);
+        match &t.keep {
+            Some(k) => b.arg(k),
+            None => b.arg(&null),
+        };
+        b.arg(&w_l1).arg(&mut sc.out).arg(&mut sc.g_out).arg(&mut sc.acc).launch(linear(p))?;
+        let mut b = s.launch_builder(&k.ssim_forward);
+        b.arg(&width).arg(&height).arg(&win).arg(&sc.out).arg(&t.rgb);
+        match &t.ssim_keep {
+            Some(k) => b.arg(k),
+            None => b.arg(&null),
+        };
+        b.arg(&mut sc.terms).arg(&mut sc.acc).launch(tiles(cam, 1))?;
         s.launch_builder(&k.blur_maps)
             .arg(&width)
             .arg(&height)
@@ -184,7 +177,6 @@ pub(crate) fn launch(
             s.memset_zeros(&mut *io.up_normal)?;
             return Ok(());
         }
-        let null = 0u64;
         let mut b = s.launch_builder(&k.normal_unit);
         b.arg(&p32).arg(io.normal);
         match (&t.normal, use_normal) {

@@ -50,10 +50,13 @@ __device__ __forceinline__ float column_pass(const Win& win, int y0, int height,
 
 // recon::ssim::ssim_channel's map and its three partial derivatives for every channel (9 maps
 // into `terms`: per channel d_mu, d_xx, d_xy, each divided by the pixel count), from the
-// composite `out` and the target (3 channels, interleaved); the map's sum into acc[2].
+// composite `out` and the target (3 channels, interleaved); the map's sum into acc[2]. `skeep`
+// (may be null: every window) weighs each window centre (recon::ssim::ssim_channel_with's `keep`:
+// 0 for a window that reaches a pixel left out of training).
 // Grid: one block of 256 threads per tile.
 extern "C" __global__ void __launch_bounds__(256) ssim_forward(int width, int height, Win win, const float* out,
-                                                               const float* target, float* terms, unsigned long long* acc) {
+                                                               const float* target, const float* skeep, float* terms,
+                                                               unsigned long long* acc) {
     __shared__ float xs[3][SH][SH], ys[3][SH][SH];
     __shared__ float hb[5][SH][ST];
     int x0 = blockIdx.x * ST, y0 = blockIdx.y * ST;
@@ -92,11 +95,12 @@ extern "C" __global__ void __launch_bounds__(256) ssim_forward(int width, int he
         float b1 = mx * mx + my * my + SSIM_C1;
         float b2 = (exx - mx * mx) + (eyy - my * my) + SSIM_C2;
         float s = a1 * a2 / (b1 * b2);
-        ssum += s;
+        float kw = skeep ? skeep[i] : 1.0f, kn = kw * inv_n;
+        ssum += kw * s;
         float* t = terms + (size_t)c * 3 * p;
-        t[i] = inv_n * (2.0f * my * (a2 - a1) / (b1 * b2) - 2.0f * mx * s * (1.0f / b1 - 1.0f / b2));
-        t[p + i] = inv_n * (-s / b2);
-        t[2 * p + i] = inv_n * (2.0f * a1 / (b1 * b2));
+        t[i] = kn * (2.0f * my * (a2 - a1) / (b1 * b2) - 2.0f * mx * s * (1.0f / b1 - 1.0f / b2));
+        t[p + i] = kn * (-s / b2);
+        t[2 * p + i] = kn * (2.0f * a1 / (b1 * b2));
     }
     warp_add(acc, 2, ssum);
 }

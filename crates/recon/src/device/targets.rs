@@ -15,6 +15,9 @@ pub(crate) struct ViewTargets {
     pub depth: Option<CudaSlice<f32>>,
     pub normal: Option<CudaSlice<f32>>,
     pub geo_weight: Option<CudaSlice<f32>>,
+    /// `Targets::keep` and `Targets::ssim_keep` (views with pixels left out of training).
+    pub keep: Option<CudaSlice<f32>>,
+    pub ssim_keep: Option<CudaSlice<f32>>,
     pub depth_valid: usize,
     pub geo_sum: f64,
 }
@@ -29,7 +32,9 @@ pub(crate) fn device_bytes(v: &View) -> u64 {
     let per_pixel = 3
         + t.depth.as_ref().map_or(0, |_| 1)
         + if t.normal.is_some() && t.mask.is_some() { 3 } else { 0 }
-        + t.geo_weight.as_ref().map_or(0, |_| 1);
+        + t.geo_weight.as_ref().map_or(0, |_| 1)
+        + t.keep.as_ref().map_or(0, |_| 1)
+        + t.ssim_keep.as_ref().map_or(0, |_| 1);
     (v.width() * v.height() * per_pixel * std::mem::size_of::<f32>()) as u64
 }
 
@@ -84,11 +89,23 @@ impl ViewTargets {
             _ => None,
         };
         let geo_weight = t.geo_weight.as_ref().map(|w| up(s, w)).transpose().map_err(d)?;
+        for (name, k) in [("keep", &t.keep), ("ssim_keep", &t.ssim_keep)] {
+            if k.as_ref().is_some_and(|k| k.len() != p) {
+                return Err(ReconError::Input(format!(
+                    "view {} frame {}: `{name}` is not one value a pixel",
+                    v.camera, v.frame
+                )));
+            }
+        }
+        let keep = t.keep.as_ref().map(|k| up(s, k)).transpose().map_err(d)?;
+        let ssim_keep = t.ssim_keep.as_ref().map(|k| up(s, k)).transpose().map_err(d)?;
         Ok(ViewTargets {
             rgb,
             depth,
             normal,
             geo_weight,
+            keep,
+            ssim_keep,
             depth_valid: t.depth.as_ref().map_or(0, |dp| dp.iter().filter(|x| **x > 0.0).count()),
             geo_sum: t.geo_weight.as_ref().map_or(0.0, |w| w.iter().map(|x| *x as f64).sum()),
         })

@@ -44,6 +44,7 @@ fn case() -> (Case, Targets) {
         geo_weight: Some(geo_weights(&depth, &mask, w, h)),
         depth: Some(depth),
         mask: Some(mask),
+        ..Default::default()
     };
     (c, t)
 }
