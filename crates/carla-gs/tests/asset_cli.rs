@@ -50,7 +50,12 @@ fn model_dir(dir: &Path) -> std::path::PathBuf {
             Actor { track_id: t.id.clone(), size_lwh: size, gaussians: box_gaussians(size) }
         })
         .collect();
-    let model = SceneModel { background: box_gaussians([1.0; 3]), actors, sky: Sky::new(2, [0.5, 0.6, 0.8]) };
+    let model = SceneModel {
+        antialiased: false,
+        background: box_gaussians([1.0; 3]),
+        actors,
+        sky: Sky::new(2, [0.5, 0.6, 0.8]),
+    };
     let mut record: ModelRecord = serde_json::from_value(serde_json::json!({
         "format": "", "scene_name": scene.name, "scene_dir": scene_dir, "backend": "cpu", "iterations": 0,
         "held_out_every": 8, "scale": 1.0, "extent": 10.0, "background_file": "", "background_gaussians": 0,

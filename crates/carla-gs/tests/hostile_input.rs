@@ -132,7 +132,8 @@ fn model_dir(dir: &Path, scene_dir: &Path) -> PathBuf {
     blob.rotations.push([1.0, 0.0, 0.0, 0.0]);
     blob.opacity_logits.push(2.0);
     blob.sh.extend([0.3, 0.1, -0.2]);
-    let model = SceneModel { background: blob, actors: Vec::new(), sky: Sky::new(2, [0.5, 0.6, 0.8]) };
+    let model =
+        SceneModel { antialiased: false, background: blob, actors: Vec::new(), sky: Sky::new(2, [0.5, 0.6, 0.8]) };
     let mut record: ModelRecord = serde_json::from_value(serde_json::json!({
         "format": "", "scene_name": scene.name, "scene_dir": scene_dir, "backend": "cpu", "iterations": 0,
         "held_out_every": 8, "scale": 1.0, "extent": 10.0, "background_file": "", "background_gaussians": 0,

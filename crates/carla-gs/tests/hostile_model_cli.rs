@@ -40,7 +40,7 @@ fn scene_and_model(dir: &Path) -> (PathBuf, PathBuf) {
         .iter()
         .map(|t| Actor { track_id: t.id.clone(), size_lwh: t.median_size_lwh(), gaussians: gaussians() })
         .collect();
-    let model = SceneModel { background: gaussians(), actors, sky: Sky::new(2, [0.5, 0.6, 0.8]) };
+    let model = SceneModel { antialiased: false, background: gaussians(), actors, sky: Sky::new(2, [0.5, 0.6, 0.8]) };
     let mut record: ModelRecord = serde_json::from_value(serde_json::json!({
         "format": "", "scene_name": scene.name, "scene_dir": scene_dir, "backend": "cpu", "iterations": 0,
         "held_out_every": 8, "scale": 0.5, "extent": 10.0, "background_file": "", "background_gaussians": 0,

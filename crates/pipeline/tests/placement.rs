@@ -56,7 +56,7 @@ fn box_model(scene: &scene::Scene) -> SceneModel {
             Actor { track_id: t.id.clone(), size_lwh: size, gaussians: box_of_gaussians(size, [0.8, 0.2, 0.2]) }
         })
         .collect();
-    SceneModel { background: splat::Gaussians::empty(0), actors, sky: Sky::new(4, [0.5, 0.6, 0.8]) }
+    SceneModel { antialiased: false, background: splat::Gaussians::empty(0), actors, sky: Sky::new(4, [0.5, 0.6, 0.8]) }
 }
 
 #[test]

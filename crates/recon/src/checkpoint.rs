@@ -38,6 +38,10 @@ struct Header {
     /// Absent in checkpoints written before the run was named.
     #[serde(default)]
     run: Option<RunIdentity>,
+    /// Whether the 3D smoothing filter's variances (one value a row, set by set) follow the sky's
+    /// arrays; absent (false) in checkpoints written before the filter.
+    #[serde(default)]
+    smoothing: bool,
 }
 
 /// What a checkpoint was trained on and with: a resumed run must match it.
@@ -57,6 +61,8 @@ pub struct TrainState {
     pub model: SceneModel,
     pub adam: AdamState,
     pub stats: Vec<Stats>,
+    /// The 3D smoothing filter's variance per set and row (`smoothing`; empty when it is off).
+    pub smoothing: Vec<Vec<f64>>,
 }
 
 /// The checkpoint's bytes on their way to the file: each value little-endian, the CRC-32C
@@ -111,7 +117,11 @@ pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), Recon
         sky_res: st.model.sky.res,
         sets,
         run: Some(run.clone()),
+        smoothing: !st.smoothing.is_empty(),
     };
+    if !st.smoothing.is_empty() && st.smoothing.iter().zip(st.model.sets()).any(|(f, g)| f.len() != g.len()) {
+        return Err(ReconError::Input("the smoothing filter's variances do not match the model's sets".into()));
+    }
     let hjson = serde_json::to_vec(&header).map_err(|e| ReconError::Input(e.to_string()))?;
     scene::write_file_atomic_with(path, |w| {
         let mut out = Sink { w, crc: 0 };
@@ -130,6 +140,9 @@ pub fn save(path: &Path, st: &TrainState, run: &RunIdentity) -> Result<(), Recon
         out.put(&st.model.sky.texels)?;
         out.put(&st.adam.sky_m)?;
         out.put(&st.adam.sky_v)?;
+        for f in &st.smoothing {
+            out.put(f)?;
+        }
         let crc = out.crc;
         out.w.write_all(&crc.to_le_bytes())
     })?;
@@ -185,7 +198,7 @@ const MAX_HEADER_BYTES: u64 = 1 << 28;
 /// checksum. A larger file (or one that is not a regular file: `/dev/zero`) is refused unread.
 pub fn max_bytes() -> u64 {
     use crate::budget::{MAX_GAUSSIANS, MAX_SKY_RES};
-    let values = MAX_GAUSSIANS * values_per_gaussian(3) + 3 * 6 * 3 * MAX_SKY_RES * MAX_SKY_RES;
+    let values = MAX_GAUSSIANS * (values_per_gaussian(3) + 1) + 3 * 6 * 3 * MAX_SKY_RES * MAX_SKY_RES;
     16 + MAX_HEADER_BYTES + 8 * values as u64 + 4
 }
 
@@ -207,7 +220,7 @@ fn check_sizes(h: &Header, payload_values: usize) -> Result<(), String> {
             return Err(format!("`sets[{i}].size_lwh` must be three finite lengths, got {:?}", s.size_lwh));
         }
         total += s.len;
-        need += s.len * values_per_gaussian(s.sh_degree);
+        need += s.len * (values_per_gaussian(s.sh_degree) + usize::from(h.smoothing));
     }
     count("sets[..].len (in all)", total, 0, MAX_GAUSSIANS)?;
     if need != payload_values {
@@ -241,6 +254,11 @@ fn check_values(st: &TrainState) -> Result<(), String> {
         let s = &st.stats[i];
         finite(&format!("sets[{i}].grad_sum"), &s.grad_sum)?;
         finite(&format!("sets[{i}].max_radius"), &s.max_radius)?;
+    }
+    for (i, f) in st.smoothing.iter().enumerate() {
+        if let Some(k) = f.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(format!("`sets[{i}].smoothing`[{k}] is {}, not a finite variance", f[k]));
+        }
     }
     finite("sky.texels", &st.model.sky.texels)?;
     finite("sky.adam_m", &st.adam.sky_m)?;
@@ -337,6 +355,10 @@ pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconE
     let sky = Sky { res: header.sky_res, texels: r.take(texels).ok_or_else(short)? };
     let sky_m = r.take(texels).ok_or_else(short)?;
     let sky_v = r.take(texels).ok_or_else(short)?;
+    let smoothing: Vec<Vec<f64>> = match header.smoothing {
+        true => header.sets.iter().map(|h| r.take(h.len).ok_or_else(short)).collect::<Result<_, _>>()?,
+        false => vec![],
+    };
     if r.pos != body.len() {
         return Err(bad("payload longer than the header says"));
     }
@@ -349,9 +371,10 @@ pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconE
         .collect();
     let st = TrainState {
         next_iteration: header.next_iteration,
-        model: SceneModel { background, actors, sky },
+        model: SceneModel { antialiased: false, background, actors, sky },
         adam: AdamState { step: header.adam_step, m, v, sky_m, sky_v },
         stats,
+        smoothing,
     };
     check_values(&st).map_err(|e| bad(&e))?;
     Ok((st, header.run))

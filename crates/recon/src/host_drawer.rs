@@ -22,7 +22,7 @@ use crate::model::SceneModel;
 use crate::pose::BoxPose;
 use crate::view::{drawn, Drawn};
 use scene::Scene;
-use splat::render::{Image, RenderOptions};
+use splat::render::Image;
 use splat::Gaussians;
 
 /// The kept world set, the actors' rows and the rasterizer's context.
@@ -114,7 +114,7 @@ impl<C> HostDrawer<C> {
             }
         }
         let mut img = Image::default();
-        backend.render(&self.world, cam, &RenderOptions::default(), &mut img, &mut self.ctx);
+        backend.render(&self.world, cam, &model.render_options(), &mut img, &mut self.ctx);
         drawn(model, cam, layers, img)
     }
 

@@ -72,7 +72,9 @@ fn colouring_views(views: &[View], frame: usize) -> Vec<&View> {
 
 /// The colour a point has in the first of `views` that sees it; `world_at(k)` places the point at
 /// the time of `views[k]` (a point on a moving car moves with its box), `None` where it cannot.
-fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View]) -> Option<[f64; 3]> {
+/// With `visible`, a view whose depth prior puts a nearer surface in front of the point
+/// (`visibility::visible`) does not see it.
+fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View], visible: bool) -> Option<[f64; 3]> {
     views.iter().enumerate().find_map(|(k, v)| {
         let p = world_at(k)?;
         let c = v.cam.to_camera(p.into());
@@ -80,8 +82,12 @@ fn colour_of(world_at: impl Fn(usize) -> Option<DVec3>, views: &[&View]) -> Opti
             return None;
         }
         let (u, w) = (v.cam.fx * c[0] / c[2] + v.cam.cx, v.cam.fy * c[1] / c[2] + v.cam.cy);
-        (u >= 0.0 && w >= 0.0 && u < v.cam.width as f64 && w < v.cam.height as f64)
-            .then(|| v.targets.rgb[w as usize * v.width() + u as usize].map(f64::from))
+        let inside = u >= 0.0 && w >= 0.0 && u < v.cam.width as f64 && w < v.cam.height as f64;
+        // A pixel left out of training (`Targets::keep`, the protocols) colours nothing either.
+        let (x, y) = (u as usize, w as usize);
+        let i = y * v.width() + x;
+        let seen = !visible || crate::visibility::visible(v, x, y, c[2]);
+        (inside && v.targets.keeps(i) && seen).then(|| v.targets.rgb[i].map(f64::from))
     })
 }
 
@@ -210,6 +216,8 @@ pub fn initialise(
     let tracks = actor_tracks(scene);
     let mut bg_points = Vec::new();
     let mut actor_points: Vec<Vec<(DVec3, [f64; 3])>> = vec![Vec::new(); tracks.len()];
+    // Actor points no view sees (`InitConfig::actor_visibility`), in their box frames.
+    let mut unseen: Vec<Vec<DVec3>> = vec![Vec::new(); tracks.len()];
     let mut source = "random";
     for f in &scene.frames {
         let fviews: Vec<&View> = views.iter().filter(|v| v.frame == f.index).collect();
@@ -251,11 +259,16 @@ pub fn initialise(
                 let pw = f.world_from_ego.transform_point(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
                 let home = on_actor(pw);
                 let colour = match home {
-                    None => colour_of(|_| Some(pw), &lend),
-                    Some((ti, b)) => colour_of(|k| world_from_box[ti][k].map(|m| m.transform_point(b)), &lend),
+                    None => colour_of(|_| Some(pw), &lend, false),
+                    Some((ti, b)) => {
+                        colour_of(|k| world_from_box[ti][k].map(|m| m.transform_point(b)), &lend, cfg.actor_visibility)
+                    }
                 };
-                if let Some(c) = colour {
-                    add(pw, home, c);
+                match (colour, home) {
+                    (Some(c), _) => add(pw, home, c),
+                    // An actor's point no view sees is still its surface: it takes the body colour.
+                    (None, Some((ti, b))) if cfg.actor_visibility => unseen[ti].push(b),
+                    _ => {}
                 }
             }
         } else {
@@ -299,7 +312,12 @@ pub fn initialise(
         background_surface_aligned: aligned,
         actors: vec![],
     };
-    for (t, pts) in tracks.iter().zip(actor_points) {
+    let actor_cfg =
+        InitConfig { opacity: if cfg.actor_opacity > 0.0 { cfg.actor_opacity } else { cfg.opacity }, ..*cfg };
+    for ((t, mut pts), hidden) in tracks.iter().zip(actor_points).zip(unseen) {
+        if let Some(body) = crate::visibility::body_colour(&pts) {
+            pts.extend(hidden.into_iter().map(|b| (b, body)));
+        }
         let size = t.median_size_lwh();
         if !box_holds_points(size) {
             tracing::warn!(
@@ -323,8 +341,12 @@ pub fn initialise(
             pts.push((p, [0.5; 3]));
         }
         report.actors.push((t.id.clone(), from_lidar, pts.len() - from_lidar));
-        actors.push(Actor { track_id: t.id.clone(), size_lwh: size, gaussians: gaussians_at(&pts, sh_degree, cfg) });
+        actors.push(Actor {
+            track_id: t.id.clone(),
+            size_lwh: size,
+            gaussians: gaussians_at(&pts, sh_degree, &actor_cfg),
+        });
     }
-    let model = SceneModel { background, actors, sky: Sky::new(sky_res, [0.5; 3]) };
+    let model = SceneModel { antialiased: false, background, actors, sky: Sky::new(sky_res, [0.5; 3]) };
     Ok((model, report))
 }

@@ -18,6 +18,9 @@ pub struct Actor {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneModel {
+    /// Drawn with Mip-Splatting's 2D filter (`splat::render::RenderOptions::antialiased`): set
+    /// when it was trained so (`TrainConfig::antialiased`), and every draw of it must match.
+    pub antialiased: bool,
     pub background: Gaussians,
     pub actors: Vec<Actor>,
     pub sky: Sky,
@@ -31,6 +34,11 @@ impl SceneModel {
 
     pub fn sets_mut(&mut self) -> impl Iterator<Item = &mut Gaussians> {
         std::iter::once(&mut self.background).chain(self.actors.iter_mut().map(|a| &mut a.gaussians))
+    }
+
+    /// The rasterizer's options for drawing this model.
+    pub fn render_options(&self) -> splat::render::RenderOptions {
+        splat::render::RenderOptions { antialiased: self.antialiased, ..Default::default() }
     }
 
     pub fn gaussian_count(&self) -> usize {

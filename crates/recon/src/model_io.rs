@@ -31,6 +31,10 @@ pub struct ActorRecord {
     pub file: String,
     pub gaussians: usize,
     pub size_lwh: [f64; 3],
+    /// The PLY already holds the actor's mirror image (`TrainConfig::mirror_vehicles`, baked at
+    /// the end of training): symmetric about the box's x-z plane.
+    #[serde(default)]
+    pub mirrored: bool,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -53,6 +57,9 @@ pub struct ModelRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub init: Option<serde_json::Value>,
     pub last_loss: LossParts,
+    /// Drawn with Mip-Splatting's 2D filter (`SceneModel::antialiased`); absent: no.
+    #[serde(default)]
+    pub antialiased: bool,
 }
 
 /// A file name for a track id (ids may hold any character).
@@ -97,11 +104,23 @@ pub fn write_model(
     cfg: &TrainConfig,
     init: Option<&InitReport>,
 ) -> Result<(), ReconError> {
+    write_model_with(dir, model, record, cfg, init, &|_| false)
+}
+
+/// [`write_model`], recording which actors (by index) hold their mirror image (`mirrored`).
+pub fn write_model_with(
+    dir: &Path,
+    model: &SceneModel,
+    record: &mut ModelRecord,
+    cfg: &TrainConfig,
+    init: Option<&InitReport>,
+    mirrored: &dyn Fn(usize) -> bool,
+) -> Result<(), ReconError> {
     std::fs::create_dir_all(dir.join("actors")).map_err(crate::error::io(dir))?;
     let bg = dir.join("background.ply");
     splat::ply::write_ply(&bg, &model.background).map_err(ply_err(&bg))?;
     record.actors.clear();
-    for a in &model.actors {
+    for (ai, a) in model.actors.iter().enumerate() {
         let file = actor_file(&a.track_id);
         let p = dir.join(&file);
         splat::ply::write_ply(&p, &a.gaussians).map_err(ply_err(&p))?;
@@ -110,6 +129,7 @@ pub fn write_model(
             file,
             gaussians: a.gaussians.len(),
             size_lwh: a.size_lwh,
+            mirrored: mirrored(ai),
         });
     }
     write_sky(dir, &model.sky)?;
@@ -117,6 +137,7 @@ pub fn write_model(
     record.background_file = "background.ply".into();
     record.background_gaussians = model.background.len();
     record.sky_res = model.sky.res;
+    record.antialiased = model.antialiased;
     if let Some(i) = init {
         record.init = serde_json::to_value(i).ok();
     }
@@ -151,7 +172,8 @@ fn read_files(dir: &Path, record: ModelRecord) -> Result<(SceneModel, ModelRecor
         actors.push(Actor { track_id: a.track_id.clone(), size_lwh: a.size_lwh, gaussians: g });
     }
     let texels = read_sky(&dir.join("sky.f32"), record.sky_res)?;
-    Ok((SceneModel { background, actors, sky: Sky { res: record.sky_res, texels } }, record))
+    let antialiased = record.antialiased;
+    Ok((SceneModel { antialiased, background, actors, sky: Sky { res: record.sky_res, texels } }, record))
 }
 
 /// Reads a model directory back (every loader of a model goes through this or

@@ -245,7 +245,12 @@ mod tests {
             sh: (0..n * k).map(|_| f()).collect(),
         };
         let actor = crate::model::Actor { track_id: "a".into(), size_lwh: [4.0, 2.0, 1.5], gaussians: set(7, f) };
-        SceneModel { background: set(5000, f), actors: vec![actor], sky: crate::sky::Sky::new(2, [0.5; 3]) }
+        SceneModel {
+            antialiased: false,
+            background: set(5000, f),
+            actors: vec![actor],
+            sky: crate::sky::Sky::new(2, [0.5; 3]),
+        }
     }
 
     fn flat(m: &SceneModel) -> Vec<f64> {

@@ -125,12 +125,13 @@ mod tests {
             g
         };
         let actor = Actor { track_id: "a".into(), size_lwh: [4.0, 2.0, 1.5], gaussians: set(2.0) };
-        let model = SceneModel { background: set(2.0), actors: vec![actor], sky: Sky::new(4, [0.5; 3]) };
+        let model =
+            SceneModel { antialiased: false, background: set(2.0), actors: vec![actor], sky: Sky::new(4, [0.5; 3]) };
         let mut adam = crate::optim::AdamState::new(&model);
         adam.m.iter_mut().for_each(|m| m.opacity_logits[0] = 1.0);
         let mut stats = vec![Stats::default(); 2];
         stats.iter_mut().for_each(|s| s.fit(1));
-        TrainState { next_iteration: 0, stats, model, adam }
+        TrainState { next_iteration: 0, stats, model, adam, smoothing: vec![] }
     }
 
     #[test]

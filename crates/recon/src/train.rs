@@ -8,7 +8,7 @@ use crate::actor_space::ActorSpace;
 use crate::backend::Backend;
 use crate::camera::pixel_ray;
 use crate::checkpoint::TrainState;
-use crate::compose::{clear_gradients, compose_into, scatter_rows, Composed, Layers};
+use crate::compose::{clear_gradients, compose_with, scatter_rows, Composed, Layers, Reparam};
 use crate::config::TrainConfig;
 use crate::data::View;
 use crate::densify::{Counts, Stats};
@@ -55,6 +55,34 @@ pub struct Trainer<'a, B: Backend> {
     /// `grads` that can be non-zero (`None` after density control, which moves rows: then every
     /// row is zeroed).
     touched: Option<(usize, Vec<(usize, usize)>)>,
+    /// Which actors are drawn with their mirror image (`TrainConfig::mirror_vehicles`).
+    pub mirrored: Vec<bool>,
+    /// The training views as samplers of every set, for the smoothing filter (empty when off).
+    samplers: Vec<Vec<crate::smoothing::Sampler>>,
+}
+
+/// Which actors of `state`'s model a run with `cfg` mirrors: the vehicles, when asked.
+pub(crate) fn mirrored_actors(scene: &Scene, state: &TrainState, cfg: &TrainConfig) -> Vec<bool> {
+    let vehicle = |id: &str| scene.track(id).is_some_and(|t| t.class == scene::ObjectClass::Vehicle);
+    state.model.actors.iter().map(|a| cfg.mirror_vehicles && vehicle(&a.track_id)).collect()
+}
+
+/// Computes the smoothing filter of `state`'s model again (`smoothing::variances`).
+pub(crate) fn refresh_smoothing(
+    state: &mut TrainState,
+    samplers: &[Vec<crate::smoothing::Sampler>],
+    cfg: &TrainConfig,
+    mirrored: &[bool],
+) {
+    if cfg.filter_3d > 0.0 {
+        state.smoothing = crate::smoothing::variances(&state.model, samplers, cfg.filter_3d, mirrored);
+    }
+}
+
+/// Whether `state` holds a smoothing filter for every row of its model.
+pub(crate) fn smoothing_fits(state: &TrainState) -> bool {
+    state.smoothing.len() == state.model.actors.len() + 1
+        && state.smoothing.iter().zip(state.model.sets()).all(|(f, g)| f.len() == g.len())
 }
 
 /// Seed for a purpose at an iteration (splitmix-style mixing).
@@ -76,6 +104,17 @@ impl<'a, B: Backend> Trainer<'a, B> {
     ) -> Self {
         let train_views = train_views(views);
         let space = actor_space_of(scene, &state, &cfg);
+        let mut state = state;
+        state.model.antialiased = cfg.antialiased;
+        let mirrored = mirrored_actors(scene, &state, &cfg);
+        let samplers = match cfg.filter_3d > 0.0 {
+            true => crate::smoothing::samplers(&state.model, scene, views),
+            false => vec![],
+        };
+        // A fresh run computes its filter before the first step; a resumed one has its own.
+        if cfg.filter_3d > 0.0 && !smoothing_fits(&state) {
+            refresh_smoothing(&mut state, &samplers, &cfg, &mirrored);
+        }
         Trainer {
             scene,
             views,
@@ -93,6 +132,8 @@ impl<'a, B: Backend> Trainer<'a, B> {
             cgrads: ChannelGrads::default(),
             sky_grad: Vec::new(),
             touched: None,
+            mirrored,
+            samplers,
         }
     }
 
@@ -103,7 +144,7 @@ impl<'a, B: Backend> Trainer<'a, B> {
             .sets()
             .map(|g| Stats { grad_sum: vec![0.0; g.len()], seen: vec![0; g.len()], max_radius: vec![0.0; g.len()] })
             .collect();
-        TrainState { next_iteration: 0, model, adam, stats }
+        TrainState { next_iteration: 0, model, adam, stats, smoothing: vec![] }
     }
 
     fn view_for(&self, it: usize) -> usize {
@@ -121,8 +162,11 @@ impl<'a, B: Backend> Trainer<'a, B> {
         let it = self.state.next_iteration;
         let view = &self.views[self.view_for(it)];
         let degree = self.cfg.active_degree(it);
-        let opts = RenderOptions::default();
-        compose_into(&self.state.model, self.scene, view.time, degree, Layers::All, &|_| None, &mut self.composed);
+        let opts = RenderOptions { antialiased: self.cfg.antialiased, ..Default::default() };
+        let smoothing = (self.cfg.filter_3d > 0.0).then_some(self.state.smoothing.as_slice());
+        let rp = Reparam { mirrored: &self.mirrored, smoothing };
+        let model = &self.state.model;
+        compose_with(model, self.scene, view.time, degree, Layers::All, &|_| None, &rp, &mut self.composed);
         self.backend.render(&self.composed.world, &view.cam, &opts, &mut self.img, &mut self.ctx);
         let (w, h) = (view.width(), view.height());
         let sky = &self.state.model.sky;
@@ -174,15 +218,18 @@ impl<'a, B: Backend> Trainer<'a, B> {
         let max_side = w.max(h) as f64;
         let mut flat = 0.0;
         let nvis = drawn.len().max(1) as f64;
+        let sets: Vec<&Gaussians> = self.state.model.sets().collect();
+        let stats = &mut self.state.stats;
         for &(wi, radius, set, i) in &drawn {
-            let scales = &self.composed.world.log_scales[wi];
+            // The row's own scales (a smoothed row draws wider ones; the disc is its own).
+            let scales = &sets[set].log_scales[i];
             let (k, lmin) = (0..3).map(|k| (k, scales[k])).fold((0, f64::MAX), |a, b| if b.1 < a.1 { b } else { a });
             flat += lmin.exp();
             if self.cfg.loss.flat > 0.0 {
                 self.grads[set].log_scales[i][k] += self.cfg.loss.flat * lmin.exp() / nvis;
             }
             if densifying {
-                self.state.stats[set].record(i, self.wgrads.mean2d_norm[wi], radius, max_side);
+                stats[set].record(i, self.wgrads.mean2d_norm[wi], radius, max_side);
             }
         }
         parts.flat = flat / nvis;
@@ -199,6 +246,9 @@ impl<'a, B: Backend> Trainer<'a, B> {
         );
         self.touched = Some((degree, rows));
         let densified = self.density_control(it + 1);
+        if crate::smoothing::due(&self.cfg, it + 1, densified.is_some()) {
+            refresh_smoothing(&mut self.state, &self.samplers, &self.cfg, &self.mirrored);
+        }
         self.state.next_iteration = it + 1;
         StepReport {
             loss: parts,

@@ -9,7 +9,7 @@ use crate::model::SceneModel;
 use crate::pose::BoxPose;
 use rayon::prelude::*;
 use scene::Scene;
-use splat::render::{Image, RenderOptions};
+use splat::render::Image;
 
 /// A drawn view: the displayed colour (Gaussians over the sky), and the Gaussians' own alpha,
 /// expected depth and camera-frame (OpenCV) normals.
@@ -40,7 +40,7 @@ pub fn draw<B: Backend>(
     compose_into(model, scene, t, degree, layers, poses, &mut composed);
     let mut img = Image::default();
     let mut ctx = B::Context::default();
-    backend.render(&composed.world, cam, &RenderOptions::default(), &mut img, &mut ctx);
+    backend.render(&composed.world, cam, &model.render_options(), &mut img, &mut ctx);
     drawn(model, cam, layers, img)
 }
 

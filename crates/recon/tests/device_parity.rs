@@ -36,6 +36,20 @@ fn cfg() -> TrainConfig {
     cfg
 }
 
+/// [`cfg`] with issue 52's features on: Mip-Splatting's 2D and 3D filters and mirrored vehicles.
+fn cfg_features() -> TrainConfig {
+    TrainConfig { antialiased: true, filter_3d: 0.2, mirror_vehicles: true, ..cfg() }
+}
+
+/// Leaves a block of every view out of training (`protocol::leave_out`), as the protocols do.
+fn leave_out_blocks(views: &mut [recon::data::View]) {
+    for v in views.iter_mut() {
+        let (w, h) = (v.width(), v.height());
+        let block: Vec<bool> = (0..w * h).map(|i| (40..75).contains(&(i % w)) && (20..50).contains(&(i / w))).collect();
+        recon::protocol::leave_out(&mut v.targets, &block, w, h);
+    }
+}
+
 /// Dense random priors (depth with holes, unit normals, a mask) so every loss term is active.
 fn add_priors(views: &mut [recon::data::View], seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -130,8 +144,22 @@ fn street(cfg: &TrainConfig) -> Street {
 #[test]
 fn one_device_step_matches_the_host_step() {
     let Some(gpu) = gpu("the device trainer parity test") else { return };
-    let cfg = cfg();
-    let Street { scene, views, extent, state0, .. } = street(&cfg);
+    step_parity(gpu, cfg(), false);
+}
+
+/// The same with the 2D and 3D filters, mirrored vehicles and pixels left out of training: the
+/// filter's variances agree to f32 rounding, then every step as above.
+#[test]
+fn one_device_step_with_the_filters_mirrors_and_left_out_pixels_matches_the_host_step() {
+    let Some(gpu) = gpu("the device trainer parity test with the adversary features") else { return };
+    step_parity(gpu, cfg_features(), true);
+}
+
+fn step_parity(gpu: Arc<splat_cuda::Gpu>, cfg: TrainConfig, left_out: bool) {
+    let Street { scene, mut views, extent, state0, .. } = street(&cfg);
+    if left_out {
+        leave_out_blocks(&mut views);
+    }
     let mut worst_grad = 0.0f64;
     // Iterations whose next one runs no density control (40 iterations: opacity resets at every
     // fourth): density control re-uploads the model and its gradient buffers start from zero.
@@ -141,8 +169,23 @@ fn one_device_step_matches_the_host_step() {
         let mut host_backend = Cuda::new().unwrap();
         host_backend.host_training = true;
         let mut host = Trainer::new(&scene, &views, cfg.clone(), host_backend, st.clone(), extent);
-        let hr = host.step();
         let mut dev = DeviceTrainer::new(&scene, &views, cfg.clone(), gpu.clone(), st.clone(), extent).unwrap();
+        if cfg.filter_3d > 0.0 {
+            // Both computed the filter before their first step.
+            let hs = host.state.smoothing.clone();
+            let ds = dev.sync_host().unwrap().smoothing.clone();
+            assert_eq!(hs.len(), ds.len(), "iteration {it}: smoothing sets");
+            for (k, (h, d)) in hs.iter().zip(&ds).enumerate() {
+                let r = rel(d, h);
+                assert!(
+                    r <= 1e-5,
+                    "iteration {it}: set {k}: smoothing variances differ by {r:.3e}: {}",
+                    worst(d, h, 3)
+                );
+            }
+            assert!(hs.iter().flatten().all(|v| *v > 0.0), "every row has a filter");
+        }
+        let hr = host.step();
         let dr = dev.step().unwrap();
         let (hl, dl) = (hr.loss, dr.loss);
         println!("iteration {it}: host loss {hl:?}\n              device loss {dl:?}");
@@ -344,8 +387,13 @@ fn device_density_control_matches_the_host() {
 #[test]
 fn two_device_trainings_of_one_seed_are_equal() {
     let Some(gpu) = gpu("the device determinism test") else { return };
-    let mut cfg = cfg();
-    cfg.densify.interval = 5;
+    for mut cfg in [cfg(), cfg_features()] {
+        cfg.densify.interval = 5;
+        determinism(gpu.clone(), cfg);
+    }
+}
+
+fn determinism(gpu: Arc<splat_cuda::Gpu>, cfg: TrainConfig) {
     let Street { scene, views, extent, state0, .. } = street(&cfg);
     let run = || {
         let mut dev = DeviceTrainer::new(&scene, &views, cfg.clone(), gpu.clone(), state0.clone(), extent).unwrap();

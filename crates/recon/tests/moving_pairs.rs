@@ -29,7 +29,8 @@ fn pairs_too_small_at_a_reduced_scale_are_counted() {
             .filter(|t| t.class == ObjectClass::Vehicle)
             .map(|t| Actor { track_id: t.id.clone(), size_lwh: [4.0, 2.0, 1.5], gaussians: Gaussians::empty(0) })
             .collect();
-        let model = SceneModel { background: Gaussians::empty(0), actors, sky: Sky::new(2, [0.5; 3]) };
+        let model =
+            SceneModel { antialiased: false, background: Gaussians::empty(0), actors, sky: Sky::new(2, [0.5; 3]) };
         views.iter().fold((0, 0), |(scored, small), v| {
             let p = moving_vehicle_iou(&Cpu, &model, &scene, v, None);
             (scored + p.scored.len(), small + p.too_small)

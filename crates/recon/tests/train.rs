@@ -110,6 +110,44 @@ fn resume_matches_an_uninterrupted_run_and_damage_is_named() {
     assert!(err.contains("checkpoint.bin") && err.contains("corrupt"), "{err}");
 }
 
+/// The same with the 2D and 3D filters and mirrored vehicles: the filter's variances are part of
+/// the checkpoint, so the resumed run still ends bit for bit where the uninterrupted one does, and
+/// the saved model holds the filter and both halves of every vehicle.
+#[test]
+fn resume_with_the_filters_and_mirrors_matches_an_uninterrupted_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = synth_scene(dir.path());
+    let cfg = TrainConfig { antialiased: true, filter_3d: 0.2, mirror_vehicles: true, ..small_config() };
+    let whole = run(&scene, &dir.path().join("whole"), &cfg, false, None);
+    let parts = dir.path().join("parts");
+    run(&scene, &parts, &cfg, false, Some(13));
+    let second = run(&scene, &parts, &cfg, true, None);
+    assert_eq!(second.last_loss, whole.last_loss, "resumed run must reach the same loss");
+    let a = recon::checkpoint::load(&dir.path().join("whole/checkpoint.bin")).unwrap();
+    let b = recon::checkpoint::load(&parts.join("checkpoint.bin")).unwrap();
+    assert!(!a.smoothing.is_empty() && a.smoothing.iter().flatten().all(|v| *v > 0.0), "every row has a filter");
+    assert_eq!(a, b, "resumed state differs from the uninterrupted one");
+    // The saved model: drawn antialiased, every vehicle's PLY holding its mirror image after its
+    // own rows, every row's scales at least the filter's.
+    let (model, record) = recon::model_io::load_model(&parts).unwrap();
+    assert!(model.antialiased && record.antialiased);
+    let scene_data = scene::load_scene(&scene).unwrap();
+    for ((saved, raw), rec) in model.actors.iter().zip(&b.model.actors).zip(&record.actors) {
+        let vehicle = scene_data.track(&raw.track_id).is_some_and(|t| t.class == scene::ObjectClass::Vehicle);
+        assert_eq!(rec.mirrored, vehicle);
+        let n = raw.gaussians.len();
+        assert_eq!(saved.gaussians.len(), if vehicle { 2 * n } else { n });
+        if vehicle && n > 0 {
+            let (m, q) = (saved.gaussians.means[n], raw.gaussians.means[0]);
+            assert!((m[1] + q[1]).abs() < 1e-6 && (m[0] - q[0]).abs() < 1e-6, "row 0's mirror image is row n");
+        }
+    }
+    let f2 = &b.smoothing[0];
+    for (i, s) in model.background.log_scales.iter().enumerate() {
+        assert!(s.iter().all(|l| (2.0 * l).exp() >= f2[i] * (1.0 - 1e-4)), "row {i} is no finer than its filter");
+    }
+}
+
 #[test]
 fn training_lowers_the_photometric_loss() {
     let dir = tempfile::tempdir().unwrap();

@@ -55,6 +55,7 @@ mod tests {
             gaussians: Gaussians::empty(0),
         };
         SceneModel {
+            antialiased: false,
             background: Gaussians::empty(0),
             actors: (0..n).map(actor).collect(),
             sky: recon::sky::Sky::new(2, [0.5; 3]),

@@ -151,6 +151,18 @@ impl<'a, B: Backend> CaseView<'a, B> {
         Ok(out)
     }
 
+    /// The clip's frame nearest to time `t` (the climax: MinTTC's instant), its index and time.
+    pub fn frame_near(&self, spec: &VideoSpec, t: f64) -> Result<(usize, f64, Canvas), RenderError> {
+        let timeline = Timeline::for_case(self.scene, self.executed, spec.fps, spec.lead_in_s)?;
+        let (k, &tk) = timeline
+            .times
+            .iter()
+            .enumerate()
+            .min_by(|a, b| (a.1 - t).abs().total_cmp(&(b.1 - t).abs()))
+            .ok_or_else(|| RenderError::Settings { what: "video".into(), detail: "no frames".into() })?;
+        Ok((k, tk, self.frame(&spec.layout.tiles(self.scene)?, tk, spec)?))
+    }
+
     /// Renders the clip of `spec` to `out` (an `.mp4`; a PNG sequence beside it without ffmpeg).
     pub fn render_video(
         &self,

@@ -119,6 +119,7 @@ fn fuzz_checkpoint() {
     let tmp = tempfile::tempdir().unwrap();
     let cam = splat::Camera::at_origin(8, 8, 8.0);
     let model = recon::SceneModel {
+        antialiased: false,
         background: splat::random::random_gaussians(7, &cam, 1, 1),
         actors: vec![recon::model::Actor {
             track_id: "car-1".into(),
@@ -132,7 +133,7 @@ fn fuzz_checkpoint() {
         .sets()
         .map(|g| Stats { grad_sum: vec![0.5; g.len()], seen: vec![3; g.len()], max_radius: vec![2.0; g.len()] })
         .collect();
-    let st = TrainState { next_iteration: 5, model, adam, stats };
+    let st = TrainState { next_iteration: 5, model, adam, stats, smoothing: vec![] };
     let run =
         RunIdentity { scene_name: "s".into(), scene_fingerprint: "0a0b".into(), config_fingerprint: "0102".into() };
     let p = tmp.path().join("base.bin");

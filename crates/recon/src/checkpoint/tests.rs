@@ -6,6 +6,7 @@ use super::*;
 fn state() -> TrainState {
     let cam = splat::Camera::at_origin(8, 8, 8.0);
     let model = SceneModel {
+        antialiased: false,
         background: splat::random::random_gaussians(7, &cam, 2, 1),
         actors: vec![Actor {
             track_id: "car-1".into(),
@@ -21,7 +22,7 @@ fn state() -> TrainState {
         .sets()
         .map(|g| Stats { grad_sum: vec![0.5; g.len()], seen: vec![3; g.len()], max_radius: vec![2.0; g.len()] })
         .collect();
-    TrainState { next_iteration: 17, model, adam, stats }
+    TrainState { next_iteration: 17, model, adam, stats, smoothing: vec![] }
 }
 
 fn run() -> RunIdentity {

@@ -1,11 +1,13 @@
 //! Composition and its gradient scatter: the scatter is the exact adjoint of the composition
 //! (checked by finite differences of a linear functional of the world parameters).
 
+use super::scatter::zero_rows;
 use super::*;
 use crate::model::{zeros_like, Actor, SceneModel};
 use crate::sky::Sky;
 use glam::DVec3;
 use scene::{Ego, EgoSizeSource, Frame, ObjectClass, Source, SourceKind, Track, TrackState, Transform3};
+use splat::backward::Gradients;
 
 fn scene() -> Scene {
     let frames = (0..2)
@@ -45,6 +47,7 @@ fn scene() -> Scene {
 fn model() -> SceneModel {
     let cam = splat::Camera::at_origin(16, 16, 16.0);
     SceneModel {
+        antialiased: false,
         background: splat::random::random_gaussians(3, &cam, 2, 1),
         actors: vec![Actor {
             track_id: "car".into(),
@@ -167,4 +170,118 @@ fn scattering_the_drawn_rows_equals_the_dense_scatter() {
     assert_eq!(sparse, dense);
     assert!(dense.iter().any(|g| g.means.iter().flatten().any(|v| *v != 0.0)));
     assert_eq!(c.set_row(c.world.len()), None);
+}
+
+#[test]
+fn scatter_is_the_adjoint_of_compose_through_the_mirror_and_the_filter() {
+    let (sc, mut m) = (scene(), model());
+    let none = |_: usize| None;
+    let f2: Vec<Vec<f64>> = m.sets().map(|g| (0..g.len()).map(|i| 0.01 + 0.005 * i as f64).collect()).collect();
+    let mirrored = [true];
+    let rp = Reparam { mirrored: &mirrored, smoothing: Some(&f2) };
+    let degree = 2;
+    let mut c = Composed::default();
+    compose_with(&m, &sc, 0.5, degree, Layers::All, &none, &rp, &mut c);
+    // Background 3, the actor 4, its mirror image 4.
+    assert_eq!((c.world.len(), c.parts.len()), (11, 3));
+    assert!(c.parts[2].mirror && c.parts[2].actor == Some(0));
+    assert_eq!(c.set_row(9), Some((1, 2)), "a mirrored row belongs to its model row");
+    let mut gw = Gradients::default();
+    gw.reset(&c.world, 0);
+    let mut x = 0.3;
+    let mut next = || {
+        x = (x * 7.3 + 0.31) % 1.0;
+        x - 0.5
+    };
+    gw.means.iter_mut().flatten().for_each(|v| *v = next());
+    gw.log_scales.iter_mut().flatten().for_each(|v| *v = next());
+    gw.rotations.iter_mut().flatten().for_each(|v| *v = next());
+    gw.opacity_logits.iter_mut().for_each(|v| *v = next());
+    gw.sh.iter_mut().for_each(|v| *v = next());
+    let mut grads: Vec<_> = m.sets().map(zeros_like).collect();
+    scatter_gradients(&c, &gw, &mut grads);
+    let base = functional(&c, &gw);
+    let h = 1e-6;
+    let check = |m: &mut SceneModel, analytic: f64, edit: &dyn Fn(&mut SceneModel, f64)| {
+        edit(m, h);
+        let mut c2 = Composed::default();
+        compose_with(m, &sc, 0.5, degree, Layers::All, &none, &rp, &mut c2);
+        edit(m, -h);
+        let fd = (functional(&c2, &gw) - base) / h;
+        assert!((fd - analytic).abs() < 1e-5 * (1.0 + fd.abs()), "fd {fd} analytic {analytic}");
+    };
+    let ag = grads[1].clone();
+    for i in 0..4 {
+        for a in 0..3 {
+            check(&mut m, ag.means[i][a], &|m, d| m.actors[0].gaussians.means[i][a] += d);
+            check(&mut m, ag.log_scales[i][a], &|m, d| m.actors[0].gaussians.log_scales[i][a] += d);
+        }
+        check(&mut m, ag.opacity_logits[i], &|m, d| m.actors[0].gaussians.opacity_logits[i] += d);
+        for a in 0..4 {
+            check(&mut m, ag.rotations[i][a], &|m, d| m.actors[0].gaussians.rotations[i][a] += d);
+        }
+        for j in 0..27 {
+            check(&mut m, ag.sh[i * 27 + j], &|m, d| m.actors[0].gaussians.sh[i * 27 + j] += d);
+        }
+    }
+    let bg = grads[0].clone();
+    for i in 0..3 {
+        for a in 0..3 {
+            check(&mut m, bg.log_scales[i][a], &|m, d| m.background.log_scales[i][a] += d);
+        }
+        check(&mut m, bg.opacity_logits[i], &|m, d| m.background.opacity_logits[i] += d);
+    }
+}
+
+#[test]
+fn a_mirrored_actor_looks_like_the_original_from_the_mirrored_camera() {
+    // Render the mirror image from a camera, and the original from that camera mirrored about the
+    // box's x-z plane (the car at the origin with heading 0, so box = world): the same picture,
+    // left and right swapped.
+    let cam = splat::Camera {
+        width: 40,
+        height: 30,
+        fx: 30.0,
+        fy: 30.0,
+        cx: 20.0,
+        cy: 15.0,
+        // Behind and to the left of the box (world y = 3), looking along +x: OpenCV x = -y_w.
+        camera_from_world: [[0.0, -1.0, 0.0, 3.0], [0.0, 0.0, -1.0, 0.5], [1.0, 0.0, 0.0, 6.0], [0.0, 0.0, 0.0, 1.0]],
+        near: 0.01,
+        far: 1e4,
+    };
+    // The mirrored camera: world y negated; in image terms x flips, so M on both sides.
+    let mirrored_cam = splat::Camera {
+        camera_from_world: [[0.0, -1.0, 0.0, -3.0], [0.0, 0.0, -1.0, 0.5], [1.0, 0.0, 0.0, 6.0], [0.0, 0.0, 0.0, 1.0]],
+        ..cam
+    };
+    let g = splat::random::random_gaussians(40, &mirrored_cam, 3, 3);
+    let mut mirrored = Gaussians::empty(3);
+    let mut sh = vec![0.0; g.coeffs() * 3];
+    for i in 0..g.len() {
+        let (mean, q) = mirror_row(&g, i, &mut sh);
+        mirrored.means.push(mean);
+        mirrored.rotations.push(q);
+        mirrored.log_scales.push(g.log_scales[i]);
+        mirrored.opacity_logits.push(g.opacity_logits[i]);
+        mirrored.sh.extend_from_slice(&sh);
+    }
+    let opts = splat::render::RenderOptions::default();
+    let feats = splat::render::Features::default();
+    let a = splat::render::render(&mirrored, &cam, &feats, &opts);
+    let b = splat::render::render(&g, &mirrored_cam, &feats, &opts);
+    // The mirrored camera's image is the reflection of a camera whose x axis is reversed: our
+    // `mirrored_cam` keeps a right-handed frame, so its image is `a` flipped left-right.
+    let (w, h) = (40usize, 30usize);
+    let mut worst: f64 = 0.0;
+    let mut lit = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let (p, q) = (a.rgb[y * w + x], b.rgb[y * w + (w - 1 - x)]);
+            worst = worst.max((0..3).map(|c| (p[c] - q[c]).abs()).fold(0.0, f64::max));
+            lit += usize::from(a.alpha[y * w + x] > 0.1);
+        }
+    }
+    assert!(lit > 20, "the car covers {lit} pixels");
+    assert!(worst < 1e-6, "largest difference {worst}");
 }

@@ -67,8 +67,8 @@ impl Segments {
         Ok(Segments { rows: Vec::new(), dev: s.alloc_zeros(1)?, sh: ShCache::default() })
     }
 
-    /// Builds the runs of the scene at time `t` (every actor at its logged pose) and copies them
-    /// to the device.
+    /// Builds the runs of the scene at time `t` (every actor at its logged pose, the `mirrored`
+    /// ones with their mirror images) and copies them to the device.
     pub fn build(
         &mut self,
         s: &Arc<CudaStream>,
@@ -76,12 +76,14 @@ impl Segments {
         scene: &Scene,
         dm: &DeviceModel,
         t: f64,
+        mirrored: &[bool],
     ) -> Result<(), CudaError> {
-        self.build_with(s, model.actors.len(), dm, true, &|ai| actor_pose(model, scene, ai, t))
+        self.build_with(s, model.actors.len(), dm, true, &|ai| actor_pose(model, scene, ai, t), mirrored)
     }
 
     /// Builds the runs of the background (when `background`) and of each of the `actors` actors
-    /// that `pose_of` places (`None`: not drawn), and copies them to the device.
+    /// that `pose_of` places (`None`: not drawn), then the mirror images of the `mirrored` ones
+    /// (`compose::compose_with`'s order), and copies them to the device.
     pub fn build_with(
         &mut self,
         s: &Arc<CudaStream>,
@@ -89,19 +91,22 @@ impl Segments {
         dm: &DeviceModel,
         background: bool,
         pose_of: &dyn Fn(usize) -> Option<BoxPose>,
+        mirrored: &[bool],
     ) -> Result<(), CudaError> {
         self.rows.clear();
-        let push = |rows: &mut Vec<Seg>, src0: usize, dst0: usize, n: usize, xf: Option<Xf>| {
+        let push = |rows: &mut Vec<Seg>, src0: usize, dst0: usize, n: usize, xf: Option<Xf>, mirror: bool| {
             if n > 0 {
                 let (moved, xf) = (xf.is_some() as i32, xf.unwrap_or(Xf::IDENTITY));
-                rows.push(Seg { src0: src0 as i32, dst0: dst0 as i32, n: n as i32, moved, xf });
+                let (src0, dst0, n, mirror) = (src0 as i32, dst0 as i32, n as i32, mirror as i32);
+                rows.push(Seg { src0, dst0, n, moved, mirror, twin: -1, xf });
             }
         };
         let mut dst = 0;
         if background {
-            push(&mut self.rows, 0, 0, dm.offsets[1], None);
+            push(&mut self.rows, 0, 0, dm.offsets[1], None, false);
             dst = dm.offsets[1];
         }
+        let mut placed = Vec::new();
         for ai in 0..actors {
             let Some(pose) = pose_of(ai) else { continue };
             let n = dm.offsets[ai + 2] - dm.offsets[ai + 1];
@@ -111,7 +116,19 @@ impl Segments {
             xf.t = pose.center.map(|v| v as f32);
             (xf.c, xf.s) = ((pose.heading / 2.0).cos() as f32, (pose.heading / 2.0).sin() as f32);
             xf.m = *self.sh.get(dm.degree, pose.heading);
-            push(&mut self.rows, dm.offsets[ai + 1], dst, n, Some(xf));
+            if n > 0 && mirrored.get(ai).copied().unwrap_or(false) {
+                placed.push((self.rows.len(), ai, n, xf));
+            }
+            push(&mut self.rows, dm.offsets[ai + 1], dst, n, Some(xf), false);
+            dst += n;
+        }
+        for (orig, ai, n, mut xf) in placed {
+            // The mirror's SH: the box-frame coefficients' y-odd basis functions negated first.
+            for ki in crate::compose::Y_ODD_COEFFS {
+                (0..16).for_each(|ko| xf.m[ko * 16 + ki] = -xf.m[ko * 16 + ki]);
+            }
+            self.rows[orig].twin = self.rows.len() as i32;
+            push(&mut self.rows, dm.offsets[ai + 1], dst, n, Some(xf), true);
             dst += n;
         }
         if !self.rows.is_empty() {
@@ -140,24 +157,25 @@ pub(crate) fn compose(
     segs: &Segments,
     degree: usize,
     w: WorldInputs,
+    smoothing: Option<&CudaSlice<f32>>,
 ) -> Result<(), DriverError> {
     let (kc_full, kc_act) = (sh_coeffs(dm.degree) as i32, sh_coeffs(degree) as i32);
     let (n_world, nseg) = segs.dims();
     if n_world == 0 {
         return Ok(());
     }
+    let null = 0u64;
     // SAFETY: the table holds `nseg` runs whose model rows src0..src0+n and world rows
-    // dst0..dst0+n exist (offsets, world_inputs of n_world rows).
+    // dst0..dst0+n exist (offsets, world_inputs of n_world rows); `smoothing` holds every row.
     unsafe {
-        s.launch_builder(&k.compose_rows)
-            .arg(&n_world)
-            .arg(&nseg)
-            .arg(&segs.dev)
-            .arg(&dm.p.means)
-            .arg(&dm.p.log_scales)
-            .arg(&dm.p.rotations)
-            .arg(&dm.p.logits)
-            .arg(&mut *w.means)
+        let mut b = s.launch_builder(&k.compose_rows);
+        b.arg(&n_world).arg(&nseg).arg(&segs.dev).arg(&dm.p.means).arg(&dm.p.log_scales).arg(&dm.p.rotations);
+        b.arg(&dm.p.logits);
+        match smoothing {
+            Some(f2) => b.arg(f2),
+            None => b.arg(&null),
+        };
+        b.arg(&mut *w.means)
             .arg(&mut *w.log_scales)
             .arg(&mut *w.rotations)
             .arg(&mut *w.logits)
@@ -177,6 +195,8 @@ pub(crate) fn compose(
 
 /// What the scatter adds besides the gradients.
 pub(crate) struct Extras<'a> {
+    /// The smoothing filter's variances (`None`: off).
+    pub smoothing: Option<&'a CudaSlice<f32>>,
     pub flat_weight: f32,
     /// The loss's counters (drawn Gaussians at `COUNT_DRAWN`).
     pub counts: &'a CudaSlice<u32>,
@@ -208,10 +228,11 @@ pub(crate) fn scatter(
     if n_world == 0 {
         return Ok(());
     }
+    let null = 0u64;
     // SAFETY: as in `compose`; the world gradients hold the n_world rows of the last render.
     unsafe {
-        s.launch_builder(&k.scatter_rows)
-            .arg(&n_world)
+        let mut b = s.launch_builder(&k.scatter_rows);
+        b.arg(&n_world)
             .arg(&nseg)
             .arg(&segs.dev)
             .arg(gw.means)
@@ -224,7 +245,12 @@ pub(crate) fn scatter(
             .arg(&pf)
             .arg(&pe)
             .arg(&dm.p.log_scales)
-            .arg(&ex.flat_weight)
+            .arg(&dm.p.logits);
+        match ex.smoothing {
+            Some(f2) => b.arg(f2),
+            None => b.arg(&null),
+        };
+        b.arg(&ex.flat_weight)
             .arg(ex.counts)
             .arg(&dens)
             .arg(&half_side)

@@ -16,7 +16,7 @@ use crate::model::SceneModel;
 use crate::pose::BoxPose;
 use crate::view::Drawn;
 use scene::Scene;
-use splat::render::{Image, RenderOptions};
+use splat::render::Image;
 use splat_cuda::{Gpu, Session};
 use std::sync::Arc;
 
@@ -63,7 +63,7 @@ impl DeviceDrawer {
             _ => poses(ai).unwrap_or_else(|| actor_pose(model, scene, ai, t)),
         };
         let background = layers != Layers::ActorsOnly;
-        self.segs.build_with(&s, model.actors.len(), &self.dm, background, &pose_of).map_err(cuda)?;
+        self.segs.build_with(&s, model.actors.len(), &self.dm, background, &pose_of, &[]).map_err(cuda)?;
         let n = self.segs.world_rows();
         let mut img = Image::default();
         if n == 0 {
@@ -79,9 +79,9 @@ impl DeviceDrawer {
             };
         } else {
             let w = self.gpu.world_inputs(&mut self.sess, n, self.dm.degree).map_err(cuda)?;
-            compose(&self.k, &s, &self.dm, &self.segs, self.dm.degree, w)
+            compose(&self.k, &s, &self.dm, &self.segs, self.dm.degree, w, None)
                 .map_err(|e| ReconError::Device(e.to_string()))?;
-            self.gpu.forward_resident(&mut self.sess, cam, &RenderOptions::default()).map_err(cuda)?;
+            self.gpu.forward_resident(&mut self.sess, cam, &model.render_options()).map_err(cuda)?;
             self.gpu.download_image(&self.sess, &mut img).map_err(cuda)?;
         }
         Ok(crate::view::drawn(model, cam, layers, img))

@@ -38,10 +38,43 @@ __device__ __forceinline__ void warp_add(unsigned long long* acc, int k, float v
 
 // A run of world rows: model rows src0..src0+n drawn at world rows dst0.., moved by x when
 // `moved` (the background is drawn as it is). The table holds only non-empty runs, in world order.
+// A `mirror` run draws its rows' mirror images about the box's x-z plane (recon::compose::
+// mirror_row: y negated, the quaternion's x and z negated; the y-odd SH columns of x.m negated on
+// the host); the run it mirrors names it in `twin` (-1: none), and the way back handles both runs'
+// rows in the unmirrored run's threads, so every model row is written by one thread.
 struct Seg {
-    int src0, dst0, n, moved;
+    int src0, dst0, n, moved, mirror, twin;
     Xf x;
 };
+
+// recon::smoothing::filtered: a row's log-scales and logit convolved with a filter of variance f2.
+__device__ __forceinline__ void smoothed(const float* ls, float logit, float f2, float* ls_out, float* logit_out) {
+    float c = 1.0f;
+    for (int a = 0; a < 3; a++) {
+        float s2 = expf(2.0f * ls[a]);
+        ls_out[a] = 0.5f * logf(s2 + f2);
+        c *= s2 / (s2 + f2);
+    }
+    c = sqrtf(c);
+    float sig = 1.0f / (1.0f + expf(-logit));
+    float om = 1.0f / (1.0f + expf(logit)) + sig * (1.0f - c);
+    *logit_out = logf(sig * c) - logf(om);
+}
+
+// recon::smoothing::filtered_grad: gradients on the filtered values back to the row's own.
+__device__ __forceinline__ void smoothed_grad(const float* ls, float logit, float f2, float* g_ls, float* g_logit) {
+    float s2[3], c = 1.0f;
+    for (int a = 0; a < 3; a++) {
+        s2[a] = expf(2.0f * ls[a]);
+        c *= s2[a] / (s2[a] + f2);
+    }
+    c = sqrtf(c);
+    float sig = 1.0f / (1.0f + expf(-logit)), one_minus_sig = 1.0f / (1.0f + expf(logit));
+    float om = one_minus_sig + sig * (1.0f - c);
+    float gl = *g_logit;
+    for (int a = 0; a < 3; a++) g_ls[a] = g_ls[a] * s2[a] / (s2[a] + f2) + gl * f2 / ((s2[a] + f2) * om);
+    *g_logit = gl * one_minus_sig / om;
+}
 
 // The run holding world row o (the last with dst0 <= o).
 __device__ __forceinline__ const Seg* seg_of(const Seg* segs, int nseg, int o) {
@@ -57,18 +90,25 @@ __device__ __forceinline__ const Seg* seg_of(const Seg* segs, int nseg, int o) {
 // ---- compose (recon::compose::compose_into): one thread per world row, every run at once;
 // the SH coefficients in compose_sh ----
 
+// `f2` (may be null: no smoothing) holds each model row's smoothing variance (recon::smoothing).
 extern "C" __global__ void compose_rows(int n_world, int nseg, const Seg* __restrict__ segs, const float* means,
                                         const float* log_scales, const float* rots, const float* logits,
-                                        float* w_means, float* w_log_scales, float* w_rots, float* w_logits) {
+                                        const float* f2, float* w_means, float* w_log_scales, float* w_rots,
+                                        float* w_logits) {
     int o = blockIdx.x * blockDim.x + threadIdx.x;
     if (o >= n_world) return;
     const Seg* g = seg_of(segs, nseg, o);
     const Xf& x = g->x;
     size_t i = (size_t)g->src0 + (o - g->dst0);
-    const float* m = means + 3 * i;
-    const float* q = rots + 4 * i;
-    for (int a = 0; a < 3; a++) w_log_scales[3 * (size_t)o + a] = log_scales[3 * i + a];
-    w_logits[o] = logits[i];
+    float my = g->mirror ? -1.0f : 1.0f;
+    float m[3] = {means[3 * i], my * means[3 * i + 1], means[3 * i + 2]};
+    float q[4] = {rots[4 * i], my * rots[4 * i + 1], rots[4 * i + 2], my * rots[4 * i + 3]};
+    if (f2) {
+        smoothed(log_scales + 3 * i, logits[i], f2[i], w_log_scales + 3 * (size_t)o, w_logits + o);
+    } else {
+        for (int a = 0; a < 3; a++) w_log_scales[3 * (size_t)o + a] = log_scales[3 * i + a];
+        w_logits[o] = logits[i];
+    }
     if (!g->moved) {
         for (int a = 0; a < 3; a++) w_means[3 * (size_t)o + a] = m[a];
         for (int a = 0; a < 4; a++) w_rots[4 * (size_t)o + a] = q[a];
@@ -108,46 +148,73 @@ extern "C" __global__ void compose_sh(int n_world, int nseg, const Seg* __restri
 // the number of Gaussians drawn, acc[6] collects the sum of their smallest scales. One thread per
 // world row; every lane reaches the warp sum; the SH gradients in scatter_sh ----
 
+// `logits` and `f2` (may be null: no smoothing) give each model row's own logit and smoothing
+// variance for the filter's Jacobian. A mirror run's threads do nothing but join the warp sum: its
+// twin's threads add both rows (mirrored back: y, the quaternion's x and z negated) in a fixed order.
 extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __restrict__ segs,
                                         const float* gw_means, const float* gw_log_scales,
                                         const float* gw_rots, const float* gw_logits, const float* gw_mean2d, const int* valid, const float* proj,
-                                        int proj_floats, int proj_extent, const float* log_scales, float flat_w,
+                                        int proj_floats, int proj_extent, const float* log_scales, const float* logits,
+                                        const float* f2, float flat_w,
                                         const unsigned* counts, int densifying, float half_side, float* g_means,
                                         float* g_log_scales, float* g_rots, float* g_logits, float* grad_sum, unsigned* seen, float* max_radius, unsigned long long* acc) {
     int o = blockIdx.x * blockDim.x + threadIdx.x;
     float e = 0.0f;
-    if (o < n_world) {
-        const Seg* sg = seg_of(segs, nseg, o);
+    const Seg* sg = o < n_world ? seg_of(segs, nseg, o) : nullptr;
+    if (sg && !sg->mirror) {
         const Xf& x = sg->x;
         size_t i = (size_t)sg->src0 + (o - sg->dst0);
-        for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gw_log_scales[3 * (size_t)o + a];
-        g_logits[i] = gw_logits[o];
-        const float* gm = gw_means + 3 * (size_t)o;
-        const float* gq = gw_rots + 4 * (size_t)o;
-        if (!sg->moved) {
-            for (int a = 0; a < 3; a++) g_means[3 * i + a] = gm[a];
-            for (int a = 0; a < 4; a++) g_rots[4 * i + a] = gq[a];
-        } else {
-            for (int a = 0; a < 3; a++)
-                g_means[3 * i + a] = x.r[a] * gm[0] + x.r[3 + a] * gm[1] + x.r[6 + a] * gm[2];
-            g_rots[4 * i] = x.c * gq[0] + x.s * gq[3];
-            g_rots[4 * i + 1] = x.c * gq[1] + x.s * gq[2];
-            g_rots[4 * i + 2] = -x.s * gq[1] + x.c * gq[2];
-            g_rots[4 * i + 3] = -x.s * gq[0] + x.c * gq[3];
+        int ot = sg->twin >= 0 ? segs[sg->twin].dst0 + (o - sg->dst0) : -1;
+        int rows[2] = {o, ot};
+        float gls[3] = {0.0f, 0.0f, 0.0f}, glog = 0.0f, gmean[3] = {0.0f, 0.0f, 0.0f}, grot[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (int k = 0; k < 2; k++) {
+            int w = rows[k];
+            if (w < 0) continue;
+            float my = k == 1 ? -1.0f : 1.0f;
+            for (int a = 0; a < 3; a++) gls[a] += gw_log_scales[3 * (size_t)w + a];
+            glog += gw_logits[w];
+            const float* gm = gw_means + 3 * (size_t)w;
+            const float* gq = gw_rots + 4 * (size_t)w;
+            float lm[3], lq[4];
+            if (!sg->moved) {
+                for (int a = 0; a < 3; a++) lm[a] = gm[a];
+                for (int a = 0; a < 4; a++) lq[a] = gq[a];
+            } else {
+                for (int a = 0; a < 3; a++) lm[a] = x.r[a] * gm[0] + x.r[3 + a] * gm[1] + x.r[6 + a] * gm[2];
+                lq[0] = x.c * gq[0] + x.s * gq[3];
+                lq[1] = x.c * gq[1] + x.s * gq[2];
+                lq[2] = -x.s * gq[1] + x.c * gq[2];
+                lq[3] = -x.s * gq[0] + x.c * gq[3];
+            }
+            gmean[0] += lm[0];
+            gmean[1] += my * lm[1];
+            gmean[2] += lm[2];
+            grot[0] += lq[0];
+            grot[1] += my * lq[1];
+            grot[2] += lq[2];
+            grot[3] += my * lq[3];
         }
-        if (valid[o]) {
+        if (f2) smoothed_grad(log_scales + 3 * i, logits[i], f2[i], gls, &glog);
+        for (int a = 0; a < 3; a++) g_log_scales[3 * i + a] = gls[a];
+        g_logits[i] = glog;
+        for (int a = 0; a < 3; a++) g_means[3 * i + a] = gmean[a];
+        for (int a = 0; a < 4; a++) g_rots[4 * i + a] = grot[a];
+        for (int k = 0; k < 2; k++) {
+            int w = rows[k];
+            if (w < 0 || !valid[w]) continue;
             const float* ls = log_scales + 3 * i;
-            int k = 0;
+            int km = 0;
             float lmin = ls[0];
             for (int a = 1; a < 3; a++)
-                if (ls[a] < lmin) { lmin = ls[a]; k = a; }
-            e = expf(lmin);
+                if (ls[a] < lmin) { lmin = ls[a]; km = a; }
+            float ek = expf(lmin);
+            e += ek;
             float nv = (float)max(counts[1], 1u);
-            g_log_scales[3 * i + k] += flat_w * e / nv;
+            g_log_scales[3 * i + km] += flat_w * ek / nv;
             if (densifying) {
-                grad_sum[i] += gw_mean2d[o] * half_side;
+                grad_sum[i] += gw_mean2d[w] * half_side;
                 seen[i] += 1u;
-                const float* ext = proj + (size_t)o * proj_floats + proj_extent;
+                const float* ext = proj + (size_t)w * proj_floats + proj_extent;
                 max_radius[i] = fmaxf(max_radius[i], fmaxf(ext[0], ext[1]));
             }
         }
@@ -157,6 +224,8 @@ extern "C" __global__ void scatter_rows(int n_world, int nseg, const Seg* __rest
 
 // The SH gradients of scatter_rows, one thread per model float (world row o, float f of its
 // kc_full * 3; coefficients above kc_act get 0), coalesced as in compose_sh.
+// A mirror run's floats are added by its twin's threads (with the mirror's own SH rotation, whose
+// y-odd columns are negated), so each model float is written once.
 extern "C" __global__ void scatter_sh(int n_world, int nseg, const Seg* __restrict__ segs, int kc_full, int kc_act,
                                       const float* gw_sh, float* g_sh) {
     int width = kc_full * 3;
@@ -164,6 +233,7 @@ extern "C" __global__ void scatter_sh(int n_world, int nseg, const Seg* __restri
     if (idx >= (size_t)n_world * width) return;
     int o = (int)(idx / width), f = (int)(idx % width);
     const Seg* g = seg_of(segs, nseg, o);
+    if (g->mirror) return;
     size_t i = (size_t)g->src0 + (o - g->dst0);
     const float* gs = gw_sh + (size_t)o * kc_act * 3;
     float v = 0.0f;
@@ -172,8 +242,72 @@ extern "C" __global__ void scatter_sh(int n_world, int nseg, const Seg* __restri
     } else {
         int ki = f / 3, ch = f % 3;
         for (int ko = 0; ko < kc_act; ko++) v += g->x.m[ko * 16 + ki] * gs[ko * 3 + ch];
+        if (g->twin >= 0) {
+            const Seg* t = segs + g->twin;
+            const float* gt = gw_sh + (size_t)(t->dst0 + (o - g->dst0)) * kc_act * 3;
+            for (int ko = 0; ko < kc_act; ko++) v += t->x.m[ko * 16 + ki] * gt[ko * 3 + ch];
+        }
     }
     g_sh[i * width + f] = v;
+}
+
+// ---- the 3D smoothing filter (recon::smoothing): each row's finest sampling rate over its set's
+// training views, then its variance ----
+
+// One view of one set: camera_from_set rows (3 x 4), intrinsics, image size.
+struct Sampler {
+    float m[12];
+    float fx, fy, cx, cy, w, h;
+};
+
+__device__ __forceinline__ float sampler_rate(const Sampler& v, float x, float y, float z) {
+    float q[3];
+    for (int r = 0; r < 3; r++) q[r] = v.m[4 * r] * x + v.m[4 * r + 1] * y + v.m[4 * r + 2] * z + v.m[4 * r + 3];
+    if (!(q[2] > 0.2f)) return 0.0f;
+    float u = v.fx * q[0] / q[2] + v.cx, t = v.fy * q[1] / q[2] + v.cy;
+    bool inside = u >= -0.15f * v.w && u <= 1.15f * v.w && t >= -0.15f * v.h && t <= 1.15f * v.h;
+    return inside ? fmaxf(v.fx, v.fy) / q[2] : 0.0f;
+}
+
+// rate[i]: the finest rate of row i (0: unseen); rate_min: the smallest positive rate of all rows
+// (float bits, which order as integers for positive floats; 0xffffffff: none). `sets` holds, per
+// set, its first row, its first sampler, its sampler count and whether it is mirrored.
+extern "C" __global__ void smooth_rates(int n, int nsets, const int* sets, const Sampler* samplers, const float* means,
+                                        float* rate, unsigned* rate_min) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    unsigned key = 0xffffffffu;
+    if (i < n) {
+        int lo = 0, hi = nsets - 1;
+        while (lo < hi) {
+            int mid = (lo + hi + 1) >> 1;
+            if (sets[4 * mid] <= i) lo = mid;
+            else hi = mid - 1;
+        }
+        const int* st = sets + 4 * lo;
+        float x = means[3 * (size_t)i], y = means[3 * (size_t)i + 1], z = means[3 * (size_t)i + 2];
+        float r = 0.0f;
+        for (int k = 0; k < st[2]; k++) {
+            const Sampler& v = samplers[st[1] + k];
+            r = fmaxf(r, sampler_rate(v, x, y, z));
+            if (st[3]) r = fmaxf(r, sampler_rate(v, x, -y, z));
+        }
+        rate[i] = r;
+        if (r > 0.0f) key = __float_as_uint(r);
+    }
+    key = __reduce_min_sync(0xffffffffu, key);
+    if ((threadIdx.x & 31) == 0 && key != 0xffffffffu) atomicMin(rate_min, key);
+}
+
+// The variances from the rates (in place): factor / rate^2, and for unseen rows the largest of the
+// seen rows' (factor / rate_min^2; 0 when no row is seen).
+extern "C" __global__ void smooth_finish(int n, float factor, const unsigned* rate_min, float* f2) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    float r = f2[i];
+    unsigned km = *rate_min;
+    float rmin = km == 0xffffffffu ? 0.0f : __uint_as_float(km);
+    float use = r > 0.0f ? r : rmin;
+    f2[i] = use > 0.0f ? factor / (use * use) : 0.0f;
 }
 
 // How many Gaussians the forward pass drew, into counts[1].

@@ -29,6 +29,8 @@ pub(crate) struct Kernels {
     pub densify_copy: CudaFunction,
     pub densify_split: CudaFunction,
     pub opacity_cap: CudaFunction,
+    pub smooth_rates: CudaFunction,
+    pub smooth_finish: CudaFunction,
 }
 
 /// The trainer's kernel source: `loss.cu` and `ssim.cu` use `kernels.cu`'s helpers, so they
@@ -66,6 +68,8 @@ impl Kernels {
             densify_copy: fd("densify_copy")?,
             densify_split: fd("densify_split")?,
             opacity_cap: fd("opacity_cap")?,
+            smooth_rates: f("smooth_rates")?,
+            smooth_finish: f("smooth_finish")?,
         })
     }
 }
@@ -134,7 +138,8 @@ impl Xf {
 }
 
 /// `Seg`: a run of world rows (model rows `src0..src0 + n` drawn at world rows `dst0..`), moved by
-/// `xf` when `moved` is 1 (see kernels.cu).
+/// `xf` when `moved` is 1, mirrored when `mirror` is 1; `twin` names the run that mirrors this
+/// one (-1: none; see kernels.cu).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Seg {
@@ -142,7 +147,40 @@ pub(crate) struct Seg {
     pub dst0: i32,
     pub n: i32,
     pub moved: i32,
+    pub mirror: i32,
+    pub twin: i32,
     pub xf: Xf,
+}
+
+/// `Sampler`: one training view of one set for the smoothing filter (`smoothing::Sampler`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Sampler {
+    pub m: [f32; 12],
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub w: f32,
+    pub h: f32,
+}
+
+// SAFETY: plain #[repr(C)] data matching the CUDA struct.
+unsafe impl DeviceRepr for Sampler {}
+unsafe impl ValidAsZeroBits for Sampler {}
+
+impl Sampler {
+    pub fn of(s: &crate::smoothing::Sampler) -> Sampler {
+        Sampler {
+            m: std::array::from_fn(|k| s.m[k / 4][k % 4] as f32),
+            fx: s.fx as f32,
+            fy: s.fy as f32,
+            cx: s.cx as f32,
+            cy: s.cy as f32,
+            w: s.width as f32,
+            h: s.height as f32,
+        }
+    }
 }
 
 // SAFETY: plain #[repr(C)] data matching the CUDA struct; all zeros is a valid (empty) run.

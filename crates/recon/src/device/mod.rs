@@ -19,6 +19,7 @@ mod kernels;
 mod ledger;
 mod loss;
 mod model;
+mod smooth;
 mod targets;
 
 pub use draw::DeviceDrawer;
@@ -67,6 +68,10 @@ pub struct DeviceTrainer<'a> {
     space: Option<(crate::actor_space::SpaceGrid, CudaSlice<u32>)>,
     /// The host's seconds per phase of `step`.
     ledger: ledger::Ledger,
+    /// Which actors are drawn with their mirror image (`TrainConfig::mirror_vehicles`).
+    mirrored: Vec<bool>,
+    /// The 3D smoothing filter (`TrainConfig::filter_3d` > 0).
+    smooth: Option<smooth::DeviceSmoothing>,
 }
 
 fn dev(e: DriverError) -> ReconError {
@@ -90,7 +95,27 @@ impl<'a> DeviceTrainer<'a> {
         let k = Kernels::compile(&gpu)?;
         let s = gpu.stream().clone();
         targets::fits(&s, views, cfg.scale)?;
+        let mut state = state;
+        state.model.antialiased = cfg.antialiased;
+        let mirrored = crate::train::mirrored_actors(scene, &state, &cfg);
         let dm = DeviceModel::upload(&s, &state)?;
+        let smooth = match cfg.filter_3d > 0.0 {
+            false => None,
+            true => {
+                let samplers = crate::smoothing::samplers(&state.model, scene, views);
+                let mut ds = smooth::DeviceSmoothing::new(&s, &samplers, &mirrored, cfg.filter_3d).map_err(dev)?;
+                // A resumed run has its filter; a fresh one computes it before the first step.
+                match crate::train::smoothing_fits(&state) {
+                    true => ds.upload(&s, &state.smoothing).map_err(cuda)?,
+                    false => {
+                        ds.refresh(&k, &s, &dm).map_err(cuda)?;
+                        // The host copy holds it too (a checkpoint before the first step has it).
+                        state.smoothing = ds.download(&s, &dm.offsets).map_err(dev)?;
+                    }
+                }
+                Some(ds)
+            }
+        };
         let targets = views
             .iter()
             .map(|v| (!v.held_out).then(|| ViewTargets::upload(&s, v)).transpose())
@@ -120,6 +145,8 @@ impl<'a> DeviceTrainer<'a> {
             density_time: (0.0, 0),
             space,
             ledger: ledger::Ledger::default(),
+            mirrored,
+            smooth,
         })
     }
 
@@ -141,6 +168,9 @@ impl<'a> DeviceTrainer<'a> {
     pub fn sync_host(&mut self) -> Result<&TrainState, ReconError> {
         if !self.host_current {
             self.dm.download(self.gpu.stream(), &mut self.state)?;
+            if let Some(ds) = &self.smooth {
+                self.state.smoothing = ds.download(self.gpu.stream(), &self.dm.offsets).map_err(dev)?;
+            }
             self.host_current = true;
         }
         Ok(&self.state)
@@ -159,13 +189,14 @@ impl<'a> DeviceTrainer<'a> {
         let vi = view_for(self.cfg.seed, &self.train_views, it);
         let view = &self.views[vi];
         let degree = self.cfg.active_degree(it);
-        let opts = RenderOptions::default();
+        let opts = RenderOptions { antialiased: self.cfg.antialiased, ..Default::default() };
         let s = self.gpu.stream().clone();
-        self.segs.build(&s, &self.state.model, self.scene, &self.dm, view.time).map_err(cuda)?;
+        self.segs.build(&s, &self.state.model, self.scene, &self.dm, view.time, &self.mirrored).map_err(cuda)?;
         let n_world = self.segs.world_rows();
         let w = self.gpu.world_inputs(&mut self.sess, n_world, degree).map_err(cuda)?;
         self.ledger.lap(Phase::Build);
-        compose::compose(&self.k, &s, &self.dm, &self.segs, degree, w).map_err(dev)?;
+        let f2 = self.smooth.as_ref().map(|d| &d.f2);
+        compose::compose(&self.k, &s, &self.dm, &self.segs, degree, w, f2).map_err(dev)?;
         self.ledger.lap(Phase::Compose);
         self.gpu.forward_resident(&mut self.sess, &view.cam, &opts).map_err(cuda)?;
         self.ledger.lap(Phase::Forward);
@@ -188,6 +219,7 @@ impl<'a> DeviceTrainer<'a> {
         }
         self.ledger.lap(Phase::Backward);
         let ex = compose::Extras {
+            smoothing: self.smooth.as_ref().map(|d| &d.f2),
             flat_weight: self.cfg.loss.flat as f32,
             counts: &self.scratch.counts,
             densifying: it < self.cfg.densify_schedule().1,
@@ -208,6 +240,9 @@ impl<'a> DeviceTrainer<'a> {
         self.ledger.lap(Phase::Adam);
         let n = it + 1;
         let densified = self.density_control(n)?;
+        if let Some(ds) = self.smooth.as_mut().filter(|_| crate::smoothing::due(&self.cfg, n, densified.is_some())) {
+            ds.refresh(&self.k, &s, &self.dm).map_err(cuda)?;
+        }
         self.state.next_iteration = n;
         self.ledger.lap(Phase::Density);
         Ok(StepReport { loss: parts, psnr: crate::metrics::psnr_from_mse(mse), gaussians: self.dm.rows(), densified })
