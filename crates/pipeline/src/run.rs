@@ -141,6 +141,20 @@ pub struct Video {
     pub layout: String,
     #[serde(flatten)]
     pub output: VideoOutput,
+    /// The still of the frame nearest to MinTTC (the case's climax), a PNG beside the video.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub climax: Option<Climax>,
+}
+
+/// The video frame a viewer should look at first: where the adversary is closest in time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Climax {
+    /// The still's file, relative to the run directory.
+    pub file: String,
+    /// The frame's index in the video and its log time (s); MinTTC's time.
+    pub frame: usize,
+    pub t: f64,
+    pub t_min_ttc: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -284,7 +298,18 @@ pub fn run_with<B: Backend>(
         progress.set_message(format!("video {}", layout.slug()));
         let mut output = view.render_video(&spec, &videos_dir.join(format!("{}.mp4", layout.slug())), progress)?;
         output.path = staged.final_path(inputs.out, &output.path);
-        videos.push(Video { layout: layout.slug(), output });
+        let t_min = best.metrics.t_min_ttc_center_s;
+        let climax = match t_min.is_finite() {
+            true => {
+                let (frame, t, still) = view.frame_near(&spec, t_min)?;
+                let file = format!("videos/{}-minttc.png", layout.slug());
+                still.save_png(&out.join(&file))?;
+                files.push(file.clone());
+                Some(Climax { file, frame, t, t_min_ttc: t_min })
+            }
+            false => None,
+        };
+        videos.push(Video { layout: layout.slug(), output, climax });
     }
     summary.timings.push(Timing { stage: "render videos".into(), seconds: clock.elapsed().as_secs_f64() });
     summary.result = Some(result);
