@@ -269,7 +269,7 @@ pub fn run_demo_on<B: Backend + Clone>(
             cfg.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
         let opts = render::asset::align::AlignOptions::default();
         let up = render::asset::library::UpAxis::Z;
-        render::asset::replace::replace_specs(&mut model, &scene_dir, &pairs, &lib, up, &opts)?;
+        render::asset::replace::replace_specs(&mut model, &scene_dir, Some(&model_dir), &pairs, &lib, up, &opts)?;
     }
     let mut cases = Vec::new();
     for &behavior in &cfg.behaviors {
