@@ -51,7 +51,7 @@ pub struct Thresholds {
 
 impl Default for Thresholds {
     fn default() -> Self {
-        Thresholds { max_closest_m: 12.0, min_azimuth_bins: 3, min_hull_px: 4000.0 }
+        Thresholds { max_closest_m: 15.0, min_azimuth_bins: 3, min_hull_px: 4000.0 }
     }
 }
 
@@ -355,7 +355,7 @@ mod tests {
         let t = Thresholds::default();
         let o = Observed {
             views: 4,
-            closest_m: Some(15.0),
+            closest_m: Some(18.0),
             azimuth_sectors: vec![5, 6],
             azimuth_span_deg: 20.0,
             max_hull_px: 3000.0,
@@ -363,7 +363,7 @@ mod tests {
         };
         let why = why_not(&o, 10, &t);
         assert_eq!(why.len(), 4, "{why:?}");
-        assert!(why[0].contains("closest 15.0 m > 12.0 m") && why[1].contains("2 azimuth sector(s) < 3"), "{why:?}");
+        assert!(why[0].contains("closest 18.0 m > 15.0 m") && why[1].contains("2 azimuth sector(s) < 3"), "{why:?}");
         assert!(why[2].contains("3000 px < 4000 px") && why[3].contains("10 Gaussian(s)"), "{why:?}");
         let good = Observed { closest_m: Some(5.0), azimuth_sectors: vec![1, 2, 3], max_hull_px: 5000.0, ..o };
         assert!(why_not(&good, 500, &t).is_empty());
