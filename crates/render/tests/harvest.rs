@@ -18,6 +18,9 @@
 //! sets of thresholds, the library (foreign assets untouched or refused, re-harvests replacing
 //! and dropping their own entries) and `auto`, which then prefers the real vehicles to the
 //! synthetic one and never takes a track's own asset.
+//!
+//! A second test harvests a briefly trained model of a synthetic street and holds its statistics
+//! to a brute-force reference (pixel counts, a sampled box surface) and its assets to the mirror.
 
 use recon::model::{Actor, SceneModel};
 use recon::model_io::{write_model, ModelRecord};
@@ -273,4 +276,111 @@ fn harvest_measures_the_log_by_hand_keeps_the_well_seen_and_auto_prefers_them() 
     // Bad thresholds are refused before anything is read.
     let e = harvest(&scene_dir, &model, &lib, &Thresholds { min_hull_px: -1.0, ..strict }, false).unwrap_err();
     assert!(e.to_string().contains("--min-hull-px"), "{e}");
+}
+
+/// The distance from `p` to the nearest of points spaced `step` over the faces of a box of
+/// `size` at `pose`: the closest approach by brute force (at most `step / sqrt(2)` too long).
+fn sampled_distance(p: DVec3, pose: &recon::pose::BoxPose, size: [f64; 3], step: f64) -> f64 {
+    let world_from_box = pose.world_from_box();
+    let n: [usize; 3] = std::array::from_fn(|k| (size[k] / step).ceil() as usize);
+    let at = |k: usize, i: usize| size[k] * (i as f64 / n[k] as f64 - 0.5);
+    let mut best = f64::INFINITY;
+    for ax in 0..3 {
+        let (u, v) = ((ax + 1) % 3, (ax + 2) % 3);
+        for side in [-0.5, 0.5] {
+            for i in 0..=n[u] {
+                for j in 0..=n[v] {
+                    let mut q = [0.0; 3];
+                    q[ax] = side * size[ax];
+                    q[u] = at(u, i);
+                    q[v] = at(v, j);
+                    best = best.min((world_from_box.transform_point(DVec3::from(q)) - p).length());
+                }
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn a_trained_models_harvest_agrees_with_a_brute_force_count_and_mirrors_its_assets() {
+    // A synthetic street, trained briefly: the statistics come from the scene, the assets from
+    // the model. The reference counts, for every training image that has the whole box in front
+    // of the camera, the pixel centres inside the projected box (`placement::box_mask`) and takes
+    // the camera centre from the scene's extrinsics and the box surface by sampling.
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    let synth_cfg = synth::SynthConfig { frames: 60, cameras: 3, width: 96, height: 64, seed: 4, ..Default::default() };
+    synth::synthesize(&synth_cfg, &scene_dir, &mut |_, _| {}).unwrap();
+    let mut cfg = recon::TrainConfig { iterations: 10, scale: 1.0, checkpoint_interval: 0, ..Default::default() };
+    cfg.init.max_points = 2000;
+    cfg.init.actor_points = 200;
+    cfg.sky_res = 4;
+    let model = tmp.path().join("model");
+    let none = |_: &recon::data::View| Ok(None);
+    let req = recon::session::TrainRequest {
+        scene_dir: &scene_dir,
+        out_dir: &model,
+        cfg,
+        resume: false,
+        force: recon::out_dir::ForceMode::Refuse,
+        stop_after: None,
+        priors: &none,
+    };
+    recon::session::train(req, recon::backend::CpuF32, &indicatif::ProgressBar::hidden()).unwrap();
+    let scene = scene::load_scene(&scene_dir).unwrap();
+    let (trained, _) = recon::model_io::load_model(&model).unwrap();
+    let lib = tmp.path().join("assets");
+    let t = Thresholds { max_closest_m: 15.0, min_azimuth_bins: 2, min_hull_px: 150.0 };
+    let r = harvest(&scene_dir, &model, &lib, &t, false).unwrap();
+    let vehicles = scene.tracks.iter().filter(|t| t.class == ObjectClass::Vehicle).count();
+    assert_eq!(r.vehicles.len(), vehicles);
+
+    let mut compared = 0;
+    for v in &r.vehicles {
+        let track = scene.track(&v.track_id).unwrap();
+        let size = track.median_size_lwh();
+        let (mut views, mut closest, mut largest) = (0, f64::INFINITY, 0usize);
+        for f in scene.frames.iter().filter(|f| f.index % 8 != 0) {
+            let Some(pose) = recon::pose::box_pose_at(&scene, track, f.timestamp_s) else { continue };
+            for im in &f.images {
+                let cam = scene.camera(&im.camera).unwrap();
+                let world_from_ego = scene.world_from_ego_of_image(f, im);
+                let sc = recon::camera::splat_camera(cam, &world_from_ego, 1.0).unwrap();
+                let Some(mask) = render::placement::box_mask(&sc, &pose, size) else { continue };
+                let count = mask.iter().filter(|&&b| b).count();
+                if count == 0 {
+                    continue;
+                }
+                views += 1;
+                largest = largest.max(count);
+                let centre = (world_from_ego * cam.ego_from_camera).translation();
+                closest = closest.min(sampled_distance(centre, &pose, size, 0.05));
+            }
+        }
+        let o = &v.observed;
+        println!("{}: {o:?}; reference {views} views, closest {closest:.3} m, largest {largest} px", v.track_id);
+        assert!(o.views >= views, "{}: {} views, the reference {views}", v.track_id, o.views);
+        if views > 0 {
+            let c = o.closest_m.unwrap();
+            assert!(c <= closest + 1e-9 && c > closest - 0.04, "{}: closest {c} vs {closest}", v.track_id);
+            // Counting pixel centres is off by up to about the hull's perimeter for small hulls.
+            let (got, want) = (o.max_hull_px, largest as f64);
+            let tol = 0.03 * want + 2.0 * want.sqrt() + 4.0;
+            assert!(got >= want - tol, "{}: largest {got} px vs {want} counted", v.track_id);
+            compared += 1;
+        }
+        assert_eq!(v.kept, v.why_not.is_empty());
+    }
+    assert!(compared >= 3, "the street's vehicles are in view");
+    let kept: Vec<_> = r.vehicles.iter().filter(|v| v.kept).collect();
+    assert!(!kept.is_empty() && kept.len() < r.vehicles.len(), "{:?}", r.vehicles);
+    // Each kept vehicle is stored with its mirror image: twice its non-transparent Gaussians.
+    let l = Library::load(&lib).unwrap();
+    for v in kept {
+        let actor = trained.actors.iter().find(|a| a.track_id == v.track_id).unwrap();
+        let e = l.get(v.asset.as_deref().unwrap()).unwrap();
+        assert_eq!(e.gaussians, 2 * render::asset::library::without_transparent(&actor.gaussians).len());
+        assert!(!e.harvest.as_ref().unwrap().mirrored_in_model);
+    }
 }

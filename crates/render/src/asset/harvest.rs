@@ -99,7 +99,7 @@ impl Observed {
             azimuth_sectors: sectors,
             azimuth_span_deg: azimuth_span(&azimuths).to_degrees(),
             max_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, f64::max),
-            total_hull_px: views.iter().map(|o| o.hull_px).sum(),
+            total_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, |a, b| a + b), // (an empty `sum` is -0.0)
         }
     }
 }
