@@ -112,7 +112,7 @@ fn library_sources_and_replace_auto() {
     assert!(text.contains("candidate") && text.contains("Chamfer"), "{text}");
     // `auto` takes the real asset (another actor of a model) over the synthetic van and the
     // user's PLY, and says why.
-    assert!(text.contains("auto: `lead`, the real (harvested) asset"), "{text}");
+    assert!(text.contains("auto: `lead`, the real vehicle asset nearest"), "{text}");
     let (before, _) = load_model(&model).unwrap();
     let (after, _) = load_model(&out).unwrap();
     assert_eq!(before.actors.len(), after.actors.len());
@@ -140,7 +140,7 @@ fn library_sources_and_replace_auto() {
         "--out",
         &p(&own),
     ]));
-    assert!(text.contains("auto: `synth-van`, no real vehicle of the class"), "{text}");
+    assert!(text.contains("auto: `synth-van`, no real vehicle asset"), "{text}");
     assert!(!out.join("checkpoint.bin").exists());
 
     let same = carla_gs(&[

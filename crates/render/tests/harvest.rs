@@ -263,7 +263,7 @@ fn harvest_measures_the_log_by_hand_keeps_the_well_seen_and_auto_prefers_them() 
     let done = replace_specs(&mut m, &scene_dir, Some(&model), &pairs[1..], &lib, UpAxis::Z, &AlignOptions::default())
         .unwrap();
     let a = done[0].auto.as_ref().unwrap();
-    assert!(a.asset == "synth-van" && !a.real && a.why.contains("no real vehicle"), "{a:?}");
+    assert!(a.asset == "synth-van" && !a.real && a.why.contains("no real vehicle asset"), "{a:?}");
 
     // An asset of another source under a harvested name is refused, and taken over with force.
     let user = AssetSource::User { path: "mine.ply".into() };

@@ -119,14 +119,14 @@ pub fn choose(lib: &Library, dir: &Path, q: &AutoQuery) -> Result<Option<AutoCho
             Some(c) => format!(", colour distance {c:.2}"),
             None => ", colour not compared (the track's is unknown)".into(),
         };
+        let (tier, which) = if b.real {
+            (format!("the real {} asset", q.class.as_str()), "real ones")
+        } else {
+            (format!("no real {} asset: the synthetic or user one", q.class.as_str()), "others")
+        };
         b.why = format!(
-            "{} {} asset of class {} nearest in size (distance {:.2}{colour}; score {:.2}) among {}",
-            if b.real { "the real" } else { "no real vehicle of the class: the" },
-            if b.real { "(harvested)" } else { "synthetic or user" },
-            q.class.as_str(),
-            b.size_distance,
-            b.score,
-            b.candidates
+            "{tier} nearest in size (distance {:.2}{colour}; score {:.2}) among {} {which}",
+            b.size_distance, b.score, b.candidates
         );
         b
     }))
@@ -224,7 +224,7 @@ mod tests {
         assert_eq!(pick([4.2, 1.8, 1.5]).asset, "sedan");
         let truck = pick([8.0, 2.5, 3.2]);
         assert_eq!(truck.asset, "truck");
-        assert!(!truck.real && truck.candidates == 2 && truck.why.contains("no real vehicle"), "{truck:?}");
+        assert!(!truck.real && truck.candidates == 2 && truck.why.contains("no real vehicle asset"), "{truck:?}");
         let q = AutoQuery { class: ObjectClass::Cyclist, ..query("t", [1.8, 0.6, 1.7], None) };
         assert!(choose(&lib, Path::new("."), &q).unwrap().is_none());
     }
