@@ -1,7 +1,7 @@
 //! `carla-gs asset` and `carla-gs replace`: a library is filled from the three sources (a
 //! synthetic vehicle, an actor of a model, a user's y-up PLY), `replace --asset auto` writes a
-//! new model directory with the actor swapped and the alignment report, and bad requests exit 2
-//! naming what is wrong.
+//! new model directory with the actor swapped for the real asset (never the track's own) and the
+//! alignment report, and bad requests exit 2 naming what is wrong.
 
 use recon::model::{Actor, SceneModel};
 use recon::model_io::{load_model, write_model, ModelRecord};
@@ -115,14 +115,37 @@ fn library_sources_and_replace_auto() {
         &p(&out),
     ]));
     assert!(text.contains("candidate") && text.contains("Chamfer"), "{text}");
+    // `auto` takes the real asset (another actor of a model) over the synthetic van and the
+    // user's PLY, and says why.
+    assert!(text.contains("auto: `lead`, the real vehicle asset nearest"), "{text}");
     let (before, _) = load_model(&model).unwrap();
     let (after, _) = load_model(&out).unwrap();
     assert_eq!(before.actors.len(), after.actors.len());
     let i = after.actors.iter().position(|a| a.track_id == "parked-8").unwrap();
-    assert_ne!(after.actors[i].gaussians.len(), before.actors[i].gaussians.len());
+    let lead = before.actors.iter().find(|a| a.track_id == "lead-1").unwrap();
+    assert_ne!(after.actors[i].gaussians.means, before.actors[i].gaussians.means);
+    assert_eq!(after.actors[i].gaussians.len(), lead.gaussians.len(), "the lead car's Gaussians");
     let reps: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("replacements.json")).unwrap()).unwrap();
     assert_eq!(reps[0]["alignment"]["candidates"].as_array().unwrap().len(), 4);
+    assert_eq!(reps[0]["auto"]["asset"], "lead");
+    assert_eq!(reps[0]["auto"]["real"], true);
+    // Never the track's own asset: `lead-1` replaced by `auto` falls back to the synthetic van
+    // (the user's PLY is of the same tier and farther in size).
+    let own = dir.path().join("replaced-own");
+    let text = ok(carla_gs(&[
+        "replace",
+        &p(&model),
+        "--track",
+        "lead-1",
+        "--asset",
+        "auto",
+        "--library",
+        &p(&lib),
+        "--out",
+        &p(&own),
+    ]));
+    assert!(text.contains("auto: `synth-van`, no real vehicle asset"), "{text}");
     assert!(!out.join("checkpoint.bin").exists());
 
     let same = carla_gs(&[

@@ -5,6 +5,11 @@
 //! opposing drift) with the default agent, simulated, exported and rendered, and
 //! `report.html` written with all of it and the stage timings.
 //!
+//! On a real log the trained model is also harvested into `<out>/assets` (the vehicles the log
+//! saw well, beside the synthetic fallbacks), and a case whose adversary the log never saw well,
+//! or saw only farther away than the case brings it, is drawn with that adversary replaced by the
+//! nearest real asset (`auto_replace`; a user's `--replace` wins).
+//!
 //! Every stage is cached (`cache`): its directory's marker holds the settings it was built from
 //! and the key of the stage before, so a second run with the same settings reuses everything
 //! and takes seconds, and a changed setting rebuilds that stage and the ones after it. The first
@@ -12,14 +17,16 @@
 //! log or a rebuilt carla-gs rebuilds everything. A training
 //! run interrupted half-way resumes from its checkpoint.
 
+use crate::auto_replace::{build_library, AutoReplace, Swapper, HARVEST_FILE, SYNTH_KINDS};
 use crate::cache::{fresh, invalidate, mark};
 use crate::case::{CaseRequest, T0Choice};
-use crate::run::{run, RenderSettings, RunInputs, RunSummary};
+use crate::run::{run, run_swapping, RenderSettings, RunInputs, RunSummary};
 use crate::PipelineError;
 use cases::spec::{AgentName, T0Spec};
 use indicatif::ProgressBar;
 use recon::backend::{Backend, CpuF32};
 use recon::TrainConfig;
+use render::asset::harvest::HarvestReport;
 use scene::Behavior;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
@@ -48,6 +55,10 @@ pub struct DemoConfig {
     /// scene directory. The synthetic settings above are then unused.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input: Option<PathBuf>,
+    /// On a real log: harvest the trained model into `<out>/assets` and draw a case's adversary
+    /// from the nearest real asset where the case needs it (`auto_replace`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto_replace: Option<AutoReplace>,
 }
 
 impl Default for DemoConfig {
@@ -66,6 +77,7 @@ impl Default for DemoConfig {
             render: RenderSettings::default(),
             replace: vec![],
             input: None,
+            auto_replace: None,
         }
     }
 }
@@ -92,6 +104,9 @@ pub struct DemoResult {
     /// One actor before and after vehicle replacement (`replace_showcase`).
     #[serde(default)]
     pub replacement: Option<crate::replace_showcase::Showcase>,
+    /// The log's vehicles harvested into `<out>/assets` (on a real log, `auto_replace`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub harvest: Option<HarvestReport>,
 }
 
 /// Reports what the demo is doing (a stage starting, a progress bar to show).
@@ -247,30 +262,31 @@ pub fn run_demo_on<B: Backend + Clone>(
     let (mut model, record) = recon::model_io::load_model(&model_dir)?;
     // The replacement showcase compares against the model as trained.
     let trained = if cfg.replace.is_empty() { None } else { Some(model.clone()) };
+    // On a real log the library also holds the log's own well-seen vehicles.
+    let auto = cfg.auto_replace.filter(|_| cfg.input.is_some());
+    let lib = out.join("assets");
+    let mut lib_key = json!({"kinds": SYNTH_KINDS, "voxel": crate::synth_asset::DEFAULT_VOXEL_M, "version": 1});
+    if let Some(a) = &auto {
+        lib_key["harvest"] = json!({"model": train_key, "thresholds": a.thresholds, "version": 1});
+    }
+    let mut harvest: Option<HarvestReport> = None;
+    if !cfg.replace.is_empty() || auto.is_some() {
+        let name = if auto.is_some() { "asset library + harvest" } else { "asset library" };
+        let thresholds = auto.as_ref().map(|a| a.thresholds);
+        stages.cached(name, &lib, &lib_key, || build_library(&lib, &scene_dir, &model_dir, thresholds.as_ref()))?;
+        if auto.is_some() {
+            harvest = Some(scene::format::read_json(&lib.join(HARVEST_FILE))?);
+        }
+    }
     if !cfg.replace.is_empty() {
-        let lib = out.join("assets");
-        let lib_key =
-            json!({"kinds": ["sedan", "van", "truck"], "voxel": crate::synth_asset::DEFAULT_VOXEL_M, "version": 1});
-        stages.cached("asset library", &lib, &lib_key, || {
-            for kind in ["sedan", "van", "truck"] {
-                let v = crate::synth_asset::vehicle_of_kind(kind, [0.75, 0.08, 0.08])?;
-                let g = crate::synth_asset::vehicle_asset(&v, crate::synth_asset::DEFAULT_VOXEL_M)?;
-                let source = render::asset::library::AssetSource::Synth {
-                    vehicle: kind.into(),
-                    method: crate::synth_asset::METHOD.into(),
-                };
-                let up = render::asset::library::UpAxis::Z;
-                let class = scene::ObjectClass::Vehicle;
-                render::asset::library::Library::add(&lib, &format!("synth-{kind}"), class, source, up, &g, true)?;
-            }
-            Ok(())
-        })?;
         let pairs =
             cfg.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
         let opts = render::asset::align::AlignOptions::default();
         let up = render::asset::library::UpAxis::Z;
-        render::asset::replace::replace_specs(&mut model, &scene_dir, &pairs, &lib, up, &opts)?;
+        render::asset::replace::replace_specs(&mut model, &scene_dir, Some(&model_dir), &pairs, &lib, up, &opts)?;
     }
+    let user_replaced: Vec<String> =
+        cfg.replace.iter().filter_map(|r| r.split_once('=')).map(|(t, _)| t.into()).collect();
     let mut cases = Vec::new();
     for &behavior in &cfg.behaviors {
         let case_dir = out.join("cases").join(behavior.as_str());
@@ -291,10 +307,30 @@ pub fn run_demo_on<B: Backend + Clone>(
         if !cfg.replace.is_empty() {
             key["replace"] = json!(cfg.replace);
         }
+        if let Some(a) = &auto {
+            key["auto_replace"] = json!({"settings": a, "library": lib_key, "version": 1});
+        }
         stages.cached(&format!("case {}", behavior.as_str()), &case_dir, &key, || {
             let inputs = RunInputs { scene: &scene, model: &model, backend, render: render_settings, out: &case_dir };
             let pb = progress.bar();
-            run(&inputs, &req, &T0Choice::Search(T0Spec::Every(0.5)), None, &pb)?;
+            let t0 = T0Choice::Search(T0Spec::Every(0.5));
+            match (&auto, &harvest) {
+                (Some(settings), Some(harvest)) => {
+                    let swapper = Swapper {
+                        scene: &scene,
+                        scene_dir: &scene_dir,
+                        model: &model,
+                        model_dir: &model_dir,
+                        library: &lib,
+                        harvest,
+                        settings: *settings,
+                        fps: render_settings.fps,
+                        user_replaced: user_replaced.clone(),
+                    };
+                    run_swapping(&inputs, &req, &t0, &pb, &|e| swapper.swap(e))?
+                }
+                _ => run(&inputs, &req, &t0, None, &pb)?,
+            };
             pb.finish_and_clear();
             Ok(())
         })?;
@@ -333,6 +369,7 @@ pub fn run_demo_on<B: Backend + Clone>(
         timings: stages.timings,
         total_seconds: 0.0,
         replacement,
+        harvest,
     };
     let clock_report = Instant::now();
     progress.stage("report");

@@ -5,6 +5,8 @@
 //! iterations; on the GPU at the full size with `configs/real-street-gpu.toml` (embedded here, one
 //! source of truth with the file users pass to `train --config`). Videos show the scene's own front
 //! camera (`compare:FRONT` and `front3` resolve to it, `render::layout`), at the training scale.
+//! The trained model is harvested into the demo's asset library and a case's adversary drawn from
+//! the log's own well-seen vehicles where the case needs it (`auto_replace`).
 
 use crate::demo::DemoConfig;
 use crate::PipelineError;
@@ -18,7 +20,12 @@ pub const CPU_SCALE: f64 = 0.25;
 
 /// The demo's settings for the real log at `input`, trained on the GPU when `gpu`.
 pub fn config(input: &Path, gpu: bool) -> Result<DemoConfig, PipelineError> {
-    let mut cfg = DemoConfig { input: Some(input.to_path_buf()), replace: vec![], ..DemoConfig::default() };
+    let mut cfg = DemoConfig {
+        input: Some(input.to_path_buf()),
+        replace: vec![],
+        auto_replace: Some(crate::auto_replace::AutoReplace::default()),
+        ..DemoConfig::default()
+    };
     cfg.train = if gpu {
         TrainConfig::from_toml(REAL_STREET_GPU_TOML)
             .map_err(|e| PipelineError::stage("configs/real-street-gpu.toml", e))?
@@ -74,5 +81,6 @@ mod tests {
         assert_eq!((gpu.train.scale, gpu.train.iterations), (1.0, 15000));
         assert_eq!(gpu.train.densify.max_gaussians, 1_200_000);
         assert!(gpu.replace.is_empty() && gpu.input.as_deref() == Some(Path::new("x")));
+        assert_eq!(cpu.auto_replace, Some(crate::auto_replace::AutoReplace::default()));
     }
 }

@@ -153,6 +153,9 @@ pub fn write_report(r: &DemoResult, out: &Path) -> Result<(), PipelineError> {
     }
     timings_section(&mut h, r);
     recon_section(&mut h, r, out, &assets)?;
+    if let Some(harvest) = &r.harvest {
+        crate::report_assets::harvest_section(&mut h, harvest);
+    }
     tables_section(&mut h, r);
     for (behavior, s) in &r.cases {
         case_section(&mut h, behavior.as_str(), s, &out.join("cases").join(behavior.as_str()), &assets)?;
@@ -319,6 +322,9 @@ fn case_section(h: &mut String, name: &str, s: &RunSummary, dir: &Path, assets: 
         m.min_distance_m,
         m.comfort_executed.as_ref().map_or("-".into(), |c| format!("{:.2} m/s²", c.a_lat_p95)),
     );
+    if let Some(a) = &s.adversary {
+        crate::report_assets::adversary_note(h, a);
+    }
     for v in &s.videos {
         match &v.output.kind {
             VideoKind::Mp4 => {

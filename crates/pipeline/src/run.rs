@@ -193,7 +193,15 @@ pub struct RunSummary {
     /// File names under the run directory.
     pub files: Vec<String>,
     pub timings: Vec<Timing>,
+    /// The demo's decision on drawing the adversary from a real asset (`auto_replace`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adversary: Option<crate::auto_replace::AdversaryCheck>,
 }
+
+/// Decides, once the case is executed and before anything is drawn, whether its adversary is
+/// drawn from another model (`Some`: the model to draw with) and records why.
+pub type AdversarySwap<'a> = dyn Fn(&scene::Executed) -> Result<(Option<recon::SceneModel>, crate::auto_replace::AdversaryCheck), PipelineError>
+    + 'a;
 
 /// Everything `run` needs besides the request.
 pub struct RunInputs<'a, B: Backend> {
@@ -224,6 +232,30 @@ pub fn run_with<B: Backend>(
     progress: &ProgressBar,
     simulate: Box<cases::runner::SimulateFn>,
 ) -> Result<RunSummary, PipelineError> {
+    run_inner(inputs, req, t0, llm, progress, simulate, None)
+}
+
+/// [`run`] with the adversary's model decided by `swap` after the case is executed (the demo's
+/// automatic replacement, `auto_replace`); the decision is recorded in `run.json`.
+pub fn run_swapping<B: Backend>(
+    inputs: &RunInputs<B>,
+    req: &CaseRequest,
+    t0: &T0Choice,
+    progress: &ProgressBar,
+    swap: &AdversarySwap,
+) -> Result<RunSummary, PipelineError> {
+    run_inner(inputs, req, t0, None, progress, Box::new(sim::simulate), Some(swap))
+}
+
+fn run_inner<B: Backend>(
+    inputs: &RunInputs<B>,
+    req: &CaseRequest,
+    t0: &T0Choice,
+    llm: Option<&mut dyn reason::backend::Backend>,
+    progress: &ProgressBar,
+    simulate: Box<cases::runner::SimulateFn>,
+    swap: Option<&AdversarySwap>,
+) -> Result<RunSummary, PipelineError> {
     // Settings the scene or model cannot honour, and an --out that is not ours, are refused
     // before anything is planned or written.
     let layouts = check_before_work(inputs, req, t0)?;
@@ -247,6 +279,7 @@ pub fn run_with<B: Backend>(
         videos: vec![],
         files: vec![],
         timings,
+        adversary: None,
     };
     let Some((result, executed, window)) = selection.chosen else {
         summary.no_case = Some(if summary.attempts.is_empty() {
@@ -268,11 +301,20 @@ pub fn run_with<B: Backend>(
     write_json_pretty(&out.join("executed.json"), &executed)?;
 
     let clock = Instant::now();
-    let view = CaseView::new(inputs.backend, inputs.model, inputs.scene, &executed)?;
+    let swapped = match swap {
+        Some(swap) => {
+            let (model, check) = swap(&executed)?;
+            summary.adversary = Some(check);
+            model
+        }
+        None => None,
+    };
+    let model = swapped.as_ref().unwrap_or(inputs.model);
+    let view = CaseView::new(inputs.backend, model, inputs.scene, &executed)?;
     let mut placement = Vec::new();
     for t in check_times(inputs.scene, &view.adversary, best.plan.start_time_s, inputs.render.placement_checks) {
         if let Some((p, picture)) =
-            check_best_camera(inputs.backend, inputs.model, inputs.scene, &view.adversary, t, inputs.render.scale)?
+            check_best_camera(inputs.backend, model, inputs.scene, &view.adversary, t, inputs.render.scale)?
         {
             let name = format!("placement/t{:.2}_{}.png", p.t, p.camera);
             std::fs::create_dir_all(out.join("placement")).map_err(PipelineError::io(out))?;

@@ -15,6 +15,7 @@
 use crate::PipelineError;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use scene::glam::DVec3;
 use splat::Gaussians;
 use std::collections::BTreeMap;
@@ -61,6 +62,9 @@ pub fn kind_of(style: Style) -> &'static str {
     }
 }
 
+/// One ray's hit: its bin (voxel and face), box-frame point, normal and shaded colour.
+type Hit = ([i64; 4], DVec3, DVec3, DVec3);
+
 #[derive(Default, Clone, Copy)]
 struct Acc {
     pos: DVec3,
@@ -101,31 +105,39 @@ pub fn vehicle_asset(v: &Vehicle, voxel_m: f64) -> Result<Gaussians, PipelineErr
             let dir = -DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin());
             let u = DVec3::Z.cross(dir).normalize();
             let w = dir.cross(u);
-            for i in 0..=n {
-                for j in 0..=n {
-                    let off = u * (i as f64 * step - radius) + w * (j as f64 * step - radius);
-                    let ray = Ray { origin: centre - dir * (radius + 10.0) + off, dir };
-                    let Some(hit) = world.cast(&ray, f64::INFINITY) else { continue };
-                    let Surface::Vehicle { local, local_normal, .. } = hit.surface else { continue };
-                    let colour = synth::shade::shade_hit(&world, &street, vehicles, &ray, Some(&hit));
-                    // Binned by voxel and by the face's dominant normal axis and sign, so a voxel
-                    // on an edge gives one surfel per face rather than one tilted between them.
-                    let a = local_normal.abs();
-                    let axis: usize = if a.x >= a.y && a.x >= a.z {
-                        0
-                    } else if a.y >= a.z {
-                        1
-                    } else {
-                        2
-                    };
-                    let side = (2 * axis) as i64 + (local_normal[axis] < 0.0) as i64;
-                    let key = [0, 1, 2, 3].map(|k| if k == 3 { side } else { (local[k] / voxel_m).floor() as i64 });
-                    let acc = bins.entry(key).or_default();
-                    acc.pos += local;
-                    acc.normal += local_normal;
-                    acc.colour += colour;
-                    acc.n += 1.0;
-                }
+            // Rows are cast in parallel and their hits added in row order, so the sums (and the
+            // asset) are the same bits whatever the number of threads.
+            let rows: Vec<Vec<Hit>> = (0..=n)
+                .into_par_iter()
+                .map(|i| {
+                    let mut hits = Vec::new();
+                    for j in 0..=n {
+                        let off = u * (i as f64 * step - radius) + w * (j as f64 * step - radius);
+                        let ray = Ray { origin: centre - dir * (radius + 10.0) + off, dir };
+                        let Some(hit) = world.cast(&ray, f64::INFINITY) else { continue };
+                        let Surface::Vehicle { local, local_normal, .. } = hit.surface else { continue };
+                        let colour = synth::shade::shade_hit(&world, &street, vehicles, &ray, Some(&hit));
+                        let a = local_normal.abs();
+                        let axis: usize = if a.x >= a.y && a.x >= a.z {
+                            0
+                        } else if a.y >= a.z {
+                            1
+                        } else {
+                            2
+                        };
+                        let side = (2 * axis) as i64 + (local_normal[axis] < 0.0) as i64;
+                        let key = [0, 1, 2, 3].map(|k| if k == 3 { side } else { (local[k] / voxel_m).floor() as i64 });
+                        hits.push((key, local, local_normal, colour));
+                    }
+                    hits
+                })
+                .collect();
+            for (key, local, local_normal, colour) in rows.into_iter().flatten() {
+                let acc = bins.entry(key).or_default();
+                acc.pos += local;
+                acc.normal += local_normal;
+                acc.colour += colour;
+                acc.n += 1.0;
             }
         }
     }

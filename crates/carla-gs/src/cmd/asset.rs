@@ -1,15 +1,20 @@
 //! `carla-gs asset` (add a Gaussian asset to a library: a user's 3DGS PLY, an actor of a trained
-//! model, or a synthetic vehicle) and `carla-gs replace` (an actor of a model swapped for an
-//! aligned asset). Arguments only; the work is in `render::asset` and `pipeline::synth_asset`.
+//! model, or a synthetic vehicle), `carla-gs asset harvest` (the vehicles a log saw well, from a
+//! model trained on it) and `carla-gs replace` (an actor of a model swapped for an aligned
+//! asset). Arguments only; the work is in `render::asset` and `pipeline::synth_asset`.
 use anyhow::Context;
 use render::asset::align::AlignOptions;
+use render::asset::harvest::{HarvestReport, Thresholds};
 use render::asset::library::{extract_actor, read_asset_ply, AssetSource, Library, UpAxis};
 use scene::ObjectClass;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 #[command(group(clap::ArgGroup::new("source").required(true).args(["ply", "from_model", "from_synth"])))]
 pub struct AssetArgs {
+    #[command(subcommand)]
+    command: Option<AssetCommand>,
     /// The asset library directory (its index is `<library>/index.json`).
     #[arg(long, default_value = "assets")]
     library: PathBuf,
@@ -44,6 +49,98 @@ pub struct AssetArgs {
     force: bool,
 }
 
+#[derive(clap::Subcommand)]
+enum AssetCommand {
+    /// Add the vehicles a log saw well (close, from several sides, large in the image) from a
+    /// model trained on it, each completed by its mirror image; lists every vehicle actor, kept
+    /// or why not.
+    Harvest(HarvestArgs),
+}
+
+#[derive(clap::Args)]
+struct HarvestArgs {
+    /// The scene directory the model was trained on.
+    scene: PathBuf,
+    /// The trained model directory.
+    #[arg(long)]
+    model: PathBuf,
+    /// The asset library directory (its index is `<library>/index.json`).
+    #[arg(long, default_value = "assets")]
+    library: PathBuf,
+    /// Keep a vehicle only if a training image saw it at most this close (m, camera to box).
+    #[arg(long, default_value_t = Thresholds::default().max_closest_m)]
+    max_closest_m: f64,
+    /// Keep a vehicle only if seen from at least this many 30-degree azimuth sectors.
+    #[arg(long, default_value_t = Thresholds::default().min_azimuth_bins)]
+    min_azimuth_bins: usize,
+    /// Keep a vehicle only if its largest view covers at least this many pixels (stored size).
+    #[arg(long, default_value_t = Thresholds::default().min_hull_px)]
+    min_hull_px: f64,
+    /// Overwrite assets of the same name that another source made (a harvest always replaces
+    /// its own earlier entries).
+    #[arg(long)]
+    force: bool,
+    /// Print the whole report as JSON instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+fn harvest(a: HarvestArgs) -> anyhow::Result<()> {
+    let t =
+        Thresholds { max_closest_m: a.max_closest_m, min_azimuth_bins: a.min_azimuth_bins, min_hull_px: a.min_hull_px };
+    let r = render::asset::harvest::harvest(&a.scene, &a.model, &a.library, &t, a.force)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print_harvest(&r);
+    }
+    Ok(())
+}
+
+fn print_harvest(r: &HarvestReport) {
+    println!(
+        "{:<38} {:<4} {:>9} {:>7} {:>6} {:>5} {:>9} {:>14}  asset / why not",
+        "vehicle track", "kept", "closest", "sectors", "span", "views", "max px", "colour"
+    );
+    for v in &r.vehicles {
+        let o = &v.observed;
+        let colour = v.colour.map_or("-".into(), |c| format!("{:.2} {:.2} {:.2}", c[0], c[1], c[2]));
+        let outcome = match &v.asset {
+            Some(name) => format!("-> {name}{}", if v.mirrored_in_model { " (mirrored in training)" } else { "" }),
+            None => v.why_not.join("; "),
+        };
+        println!(
+            "{:<38} {:<4} {:>9} {:>7} {:>5.0}° {:>5} {:>9.0} {:>14}  {outcome}",
+            v.track_id,
+            if v.kept { "yes" } else { "no" },
+            o.closest_m.map_or("-".into(), |d| format!("{d:.1} m")),
+            o.azimuth_sectors.len(),
+            o.azimuth_span_deg,
+            o.views,
+            o.max_hull_px,
+            colour,
+        );
+    }
+    let kept = r.vehicles.iter().filter(|v| v.kept).count();
+    println!(
+        "kept {kept} of {} vehicle actors (thresholds: closest <= {} m, >= {} azimuth sectors, largest view >= {} px; \
+         training views only: {}); {} actors of other classes not harvested",
+        r.vehicles.len(),
+        r.thresholds.max_closest_m,
+        r.thresholds.min_azimuth_bins,
+        r.thresholds.min_hull_px,
+        match r.held_out_every {
+            0 => "no frame held out".to_string(),
+            n => format!("frames with index % {n} == 0 held out"),
+        },
+        r.other_actors
+    );
+    if !r.removed.is_empty() {
+        println!("dropped from an earlier harvest of this model: {}", r.removed.join(", "));
+    }
+    println!("-> {}", r.library.join(render::asset::library::INDEX_FILE).display());
+}
+
 fn parse_class(s: &str) -> anyhow::Result<ObjectClass> {
     ObjectClass::ALL
         .into_iter()
@@ -52,6 +149,9 @@ fn parse_class(s: &str) -> anyhow::Result<ObjectClass> {
 }
 
 pub fn add(a: AssetArgs) -> anyhow::Result<()> {
+    if let Some(AssetCommand::Harvest(h)) = a.command {
+        return harvest(h);
+    }
     let class = parse_class(&a.class)?;
     let up = UpAxis::parse(&a.up)?;
     let (name, source, up, g) = if let Some(ply) = &a.ply {
@@ -102,8 +202,9 @@ pub struct ReplaceArgs {
     /// The actor's track id.
     #[arg(long)]
     track: String,
-    /// A 3DGS PLY file, an asset name of the library, or `auto` (the nearest-sized asset of the
-    /// track's class).
+    /// A 3DGS PLY file, an asset name of the library, or `auto` (the nearest real asset of the
+    /// track's class by size and colour, else the nearest synthetic or user one; never the track's
+    /// own).
     #[arg(long)]
     asset: String,
     #[arg(long, default_value = "assets")]
@@ -143,6 +244,9 @@ pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
     let done = render::asset::replace::replace_in_dir(&a.model, staged.path(), &pairs, &a.library, up, &opts)?;
     staged.commit()?;
     for r in &done {
+        if let Some(auto) = &r.auto {
+            println!("auto: `{}`, {}", auto.asset, auto.why);
+        }
         let c = r.alignment.chosen();
         println!(
             "track `{}` <- `{}`: candidate {} (yaw {:.2} deg, scale {:.3} {:.3} {:.3}; extent error {:.3} m, Chamfer {:.3} m, score {:.3}), {} -> {} Gaussians",
@@ -178,8 +282,8 @@ pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct ReplaceFlags {
     /// Replace an actor with an aligned asset before anything is drawn: <track>=<3DGS PLY file,
-    /// asset name of --asset-library, or auto (nearest-sized asset of the track's class)>.
-    /// Repeatable.
+    /// asset name of --asset-library, or auto (the nearest real asset of the track's class, else
+    /// the nearest synthetic one)>. Repeatable.
     #[arg(long = "replace")]
     pub replace: Vec<String>,
     /// The asset library --replace reads.
@@ -191,9 +295,14 @@ pub struct ReplaceFlags {
 }
 
 impl ReplaceFlags {
-    /// Applies the replacements to `model` (trained on the scene in `scene_dir`) and prints the
-    /// alignment chosen for each.
-    pub fn apply(&self, model: &mut recon::SceneModel, scene_dir: &std::path::Path) -> anyhow::Result<()> {
+    /// Applies the replacements to `model` (from `model_dir`, trained on the scene in
+    /// `scene_dir`) and prints the asset and alignment chosen for each.
+    pub fn apply(
+        &self,
+        model: &mut recon::SceneModel,
+        scene_dir: &std::path::Path,
+        model_dir: &std::path::Path,
+    ) -> anyhow::Result<()> {
         if self.replace.is_empty() {
             return Ok(());
         }
@@ -204,9 +313,13 @@ impl ReplaceFlags {
         let pairs =
             self.replace.iter().map(|r| render::asset::replace::parse_replace_arg(r)).collect::<Result<Vec<_>, _>>()?;
         let opts = AlignOptions { lambda: self.replace_lambda, isotropic: false };
+        let lib = &self.asset_library;
         let done =
-            render::asset::replace::replace_specs(model, scene_dir, &pairs, &self.asset_library, UpAxis::Z, &opts)?;
+            render::asset::replace::replace_specs(model, scene_dir, Some(model_dir), &pairs, lib, UpAxis::Z, &opts)?;
         for r in done {
+            if let Some(a) = &r.auto {
+                println!("auto for `{}`: `{}`, {}", r.track_id, a.asset, a.why);
+            }
             let c = r.alignment.chosen();
             println!(
                 "replaced `{}` with `{}`: candidate {} (yaw {:.1} deg, extent error {:.3} m, Chamfer {:.3} m)",

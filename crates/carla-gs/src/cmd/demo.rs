@@ -1,5 +1,7 @@
 //! `carla-gs demo [--out demo-out] [--input <log>]`: the whole pipeline on embedded defaults
-//! (`pipeline::demo`), on the synthetic street or on a real log (`pipeline::real_log`).
+//! (`pipeline::demo`), on the synthetic street or on a real log (`pipeline::real_log`, whose
+//! adversaries are replaced by the log's own well-seen vehicles where a case needs it,
+//! `pipeline::auto_replace`).
 
 use super::recon::{open_cuda, Device};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -32,6 +34,10 @@ pub struct Args {
     /// size with configs/real-street-gpu.toml on `--device cuda`.
     #[arg(long)]
     input: Option<PathBuf>,
+    /// On a real log, draw every adversary as reconstructed: no harvest of the log's vehicles
+    /// into <out>/assets and no automatic replacement (--replace still applies).
+    #[arg(long)]
+    no_auto_replace: bool,
 }
 
 struct Terminal;
@@ -75,6 +81,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     cfg.seed = a.seed;
     cfg.replace = a.replace.clone();
+    if a.no_auto_replace {
+        cfg.auto_replace = None;
+    }
     let r = match a.device {
         Device::Cpu => run_demo_on(&CpuF32, &cfg, &a.out, &Terminal)?,
         Device::CpuF64 => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
@@ -97,6 +106,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             ),
             None => println!("{:<22} no corner case ({} attempts)", b.as_str(), s.attempts.len()),
         }
+        if let Some(adv) = &s.adversary {
+            match (&adv.auto, adv.replaced) {
+                (Some(c), true) => {
+                    println!("{:<22} adversary {} replaced by `{}`: {}", "", adv.track_id, c.asset, adv.why)
+                }
+                _ => println!("{:<22} adversary {} as reconstructed: {}", "", adv.track_id, adv.why),
+            }
+        }
+    }
+    if let Some(h) = &r.harvest {
+        let kept = h.vehicles.iter().filter(|v| v.kept).count();
+        println!(
+            "asset library: {kept} of {} vehicles of the log harvested -> {}",
+            h.vehicles.len(),
+            h.library.join(render::asset::library::INDEX_FILE).display()
+        );
     }
     let report = a.out.join(pipeline::report::REPORT_FILE);
     let shown = std::fs::canonicalize(&report).unwrap_or(report);

@@ -103,7 +103,7 @@ pub struct RunArgs {
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let scene = scene::load_scene(&a.scene)?;
     let (mut model, _) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
-    a.replace.apply(&mut model, &a.scene)?;
+    a.replace.apply(&mut model, &a.scene, &a.model)?;
     let agent: AgentName = a.agent.parse().map_err(anyhow::Error::msg)?;
     let behavior =
         a.behavior.as_deref().map(|b| b.parse().map_err(|e: String| anyhow::anyhow!("--behavior: {e}"))).transpose()?;

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! <lib>/index.json     {"format": "carla-gs-assets/1", "assets": [{name, class, size_lwh, source,
-//!                       file, up, gaussians, sh_degree}, ...]}
+//!                       file, up, gaussians, sh_degree, colour?, harvest?}, ...]}
 //! <lib>/<name>.ply     the asset, z up (converted from its declared up axis when added)
 //! ```
 //!
@@ -11,10 +11,15 @@
 //! `z` by default: a `y`-up export is turned so +y becomes +z), an actor extracted from a trained
 //! model (already in its box frame: x forward, z up), or a synthetic vehicle (`pipeline`). The
 //! nominal size is the canonical frame's extents (`align::frame_of`) of the Gaussians that are
-//! not nearly transparent, so `auto` can pick the nearest-sized asset of a class.
+//! not nearly transparent, and the colour the median body colour of the opaque ones, so `auto`
+//! (`auto`) can pick the nearest asset of a class. Assets harvested from a log (`harvest`) also
+//! carry how well the log saw the vehicle. Both fields are optional, so indices written before
+//! them still load. Every change is staged: the PLY files are written beside their destination
+//! and renamed into place, then the index is replaced whole.
 
 use super::align::frame_of;
 use super::covariance::{transform, Mat3};
+use super::harvest::HarvestRecord;
 use crate::RenderError;
 use scene::ObjectClass;
 use serde::{Deserialize, Serialize};
@@ -25,6 +30,8 @@ pub const LIBRARY_FORMAT: &str = "carla-gs-assets/1";
 pub const INDEX_FILE: &str = "index.json";
 /// Gaussians below this opacity do not count for an asset's geometry (size, alignment).
 pub const MIN_GEOMETRY_OPACITY: f64 = 0.1;
+/// Gaussians at least this opaque make an asset's body colour ([`body_colour`]).
+pub const MIN_COLOUR_OPACITY: f64 = 0.5;
 
 /// The axis of a PLY that points up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -89,6 +96,31 @@ pub struct AssetEntry {
     pub up: UpAxis,
     pub gaussians: usize,
     pub sh_degree: usize,
+    /// The median body colour (r, g, b in [0, 1], [`body_colour`]); absent in indices written
+    /// before it was recorded (`auto` then reads it from the PLY).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colour: Option<[f64; 3]>,
+    /// How well the log saw the vehicle, for an asset harvested from a log (`harvest`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub harvest: Option<HarvestRecord>,
+}
+
+impl AssetEntry {
+    /// Whether the asset is a real vehicle: an actor of a model trained on a log.
+    pub fn is_real(&self) -> bool {
+        matches!(self.source, AssetSource::Model { .. })
+    }
+}
+
+/// An asset to store ([`Library::store`]).
+pub struct NewAsset {
+    pub name: String,
+    pub class: ObjectClass,
+    pub source: AssetSource,
+    pub up: UpAxis,
+    /// Already z up.
+    pub gaussians: Gaussians,
+    pub harvest: Option<HarvestRecord>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -139,6 +171,42 @@ pub fn nominal_size(g: &Gaussians) -> [f64; 3] {
     frame_of(&geometry_points(g)).map_or([0.0; 3], |f| f.extents)
 }
 
+/// The body colour of a vehicle's Gaussians: per channel, the median over the Gaussians at least
+/// [`MIN_COLOUR_OPACITY`] opaque of their view-independent colour `0.5 + C0 * dc` (clamped to
+/// [0, 1]). The median, not the mean: windows, tyres and lights are a minority of a car's
+/// Gaussians. `None` when no Gaussian is that opaque.
+pub fn body_colour(g: &Gaussians) -> Option<[f64; 3]> {
+    let k = g.coeffs() * 3;
+    let opaque: Vec<usize> =
+        (0..g.len()).filter(|&i| splat::gaussians::sigmoid(g.opacity_logits[i]) >= MIN_COLOUR_OPACITY).collect();
+    if opaque.is_empty() {
+        return None;
+    }
+    Some(std::array::from_fn(|ch| {
+        let mut v: Vec<f64> =
+            opaque.iter().map(|&i| (0.5 + splat::sh::C0 * g.sh[i * k + ch]).clamp(0.0, 1.0)).collect();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            (v[n / 2 - 1] + v[n / 2]) / 2.0
+        }
+    }))
+}
+
+/// Refuses a name that is not a plain file stem.
+fn check_name(name: &str) -> Result<(), RenderError> {
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)) || name.starts_with('.')
+    {
+        return Err(RenderError::Settings {
+            what: format!("asset name `{name}`"),
+            detail: "use letters, digits, `-`, `_` and `.` (not first)".into(),
+        });
+    }
+    Ok(())
+}
+
 impl Library {
     /// Reads `<dir>/index.json`; an absent index is an empty library.
     pub fn load(dir: &Path) -> Result<Library, RenderError> {
@@ -157,22 +225,6 @@ impl Library {
         self.assets.iter().find(|a| a.name == name)
     }
 
-    /// The asset of `class` whose nominal size is nearest `size_lwh` (sum of |log ratio| over
-    /// the three axes; the first listed wins a tie).
-    pub fn nearest(&self, class: ObjectClass, size_lwh: [f64; 3]) -> Option<&AssetEntry> {
-        let dist = |a: &AssetEntry| -> f64 {
-            (0..3).map(|k| (a.size_lwh[k].max(1e-6) / size_lwh[k].max(1e-6)).ln().abs()).sum()
-        };
-        let mut best: Option<(&AssetEntry, f64)> = None;
-        for a in self.assets.iter().filter(|a| a.class == class) {
-            let d = dist(a);
-            if best.is_none_or(|(_, b)| d < b) {
-                best = Some((a, d));
-            }
-        }
-        best.map(|(a, _)| a)
-    }
-
     /// Loads an asset's Gaussians (z up).
     pub fn read(&self, dir: &Path, entry: &AssetEntry) -> Result<Gaussians, RenderError> {
         read_asset_ply(&dir.join(&entry.file), UpAxis::Z)
@@ -189,77 +241,92 @@ impl Library {
         g: &Gaussians,
         replace: bool,
     ) -> Result<AssetEntry, RenderError> {
-        if name.is_empty()
-            || !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-            || name.starts_with('.')
-        {
-            return Err(RenderError::Settings {
-                what: format!("asset name `{name}`"),
-                detail: "use letters, digits, `-`, `_` and `.` (not first)".into(),
-            });
+        let new = NewAsset { name: name.to_string(), class, source, up, gaussians: g.clone(), harvest: None };
+        let mut stored = Library::store(dir, vec![new], &|_| replace, &|_| false)?;
+        Ok(stored.pop().expect("one asset stored"))
+    }
+
+    /// Stores `new` in the library at `dir` in one change: each PLY is written beside its
+    /// destination and renamed into place, then the index is replaced whole (an interrupted
+    /// store leaves the old index). An asset of the same name is replaced only where
+    /// `replaceable` says so (otherwise nothing is written); entries for which `remove` holds are
+    /// dropped from the index and their PLY files deleted. Returns the new entries.
+    pub fn store(
+        dir: &Path,
+        new: Vec<NewAsset>,
+        replaceable: &dyn Fn(&AssetEntry) -> bool,
+        remove: &dyn Fn(&AssetEntry) -> bool,
+    ) -> Result<Vec<AssetEntry>, RenderError> {
+        for (i, a) in new.iter().enumerate() {
+            check_name(&a.name)?;
+            if new[..i].iter().any(|b| b.name == a.name) {
+                return Err(RenderError::Settings {
+                    what: format!("asset `{}`", a.name),
+                    detail: "is named twice in one change".into(),
+                });
+            }
         }
         let mut lib = Library::load(dir)?;
-        if lib.get(name).is_some() && !replace {
-            return Err(RenderError::Settings {
-                what: format!("asset `{name}`"),
-                detail: format!("is already in {} (replace it explicitly)", dir.join(INDEX_FILE).display()),
-            });
+        for a in &new {
+            if let Some(old) = lib.get(&a.name).filter(|old| !replaceable(old)) {
+                return Err(RenderError::Settings {
+                    what: format!("asset `{}`", old.name),
+                    detail: format!("is already in {} (replace it explicitly)", dir.join(INDEX_FILE).display()),
+                });
+            }
         }
         std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
-        let file = format!("{name}.ply");
-        let path = dir.join(&file);
-        splat::ply::write_ply(&path, g).map_err(ply_err(&path))?;
-        let entry = AssetEntry {
-            name: name.to_string(),
-            class,
-            size_lwh: nominal_size(g),
-            source,
-            file,
-            up,
-            gaussians: g.len(),
-            sh_degree: g.sh_degree,
-        };
-        lib.assets.retain(|a| a.name != name);
-        lib.assets.push(entry.clone());
+        let mut staged: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(new.len());
+        let mut entries = Vec::with_capacity(new.len());
+        for a in &new {
+            let file = format!("{}.ply", a.name);
+            let tmp = dir.join(format!(".{file}.{}.tmp", std::process::id()));
+            if let Err(e) = splat::ply::write_ply(&tmp, &a.gaussians).map_err(ply_err(&tmp)) {
+                let _ = std::fs::remove_file(&tmp);
+                staged.iter().for_each(|(t, _)| drop(std::fs::remove_file(t)));
+                return Err(e);
+            }
+            staged.push((tmp, dir.join(&file)));
+            entries.push(AssetEntry {
+                name: a.name.clone(),
+                class: a.class,
+                size_lwh: nominal_size(&a.gaussians),
+                source: a.source.clone(),
+                file,
+                up: a.up,
+                gaussians: a.gaussians.len(),
+                sh_degree: a.gaussians.sh_degree,
+                colour: body_colour(&a.gaussians),
+                harvest: a.harvest.clone(),
+            });
+        }
+        for (i, (tmp, path)) in staged.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, path) {
+                staged[i..].iter().for_each(|(t, _)| drop(std::fs::remove_file(t)));
+                return Err(RenderError::io(path, e));
+            }
+        }
+        let dropped: Vec<AssetEntry> =
+            lib.assets.iter().filter(|a| remove(a) && new.iter().all(|n| n.name != a.name)).cloned().collect();
+        lib.assets.retain(|a| new.iter().all(|n| n.name != a.name) && !dropped.contains(a));
+        lib.assets.extend(entries.iter().cloned());
         scene::format::write_json_pretty(&dir.join(INDEX_FILE), &lib)?;
-        Ok(entry)
+        for d in dropped.iter().filter(|d| lib.assets.iter().all(|a| a.file != d.file)) {
+            let _ = std::fs::remove_file(dir.join(&d.file));
+        }
+        Ok(entries)
     }
 }
 
-/// What `--asset` / `--replace <track>=<spec>` can name.
-pub const AUTO: &str = "auto";
+/// Gaussians below this opacity are left out of an asset taken from a model: they draw nothing.
+pub const MIN_ASSET_OPACITY: f64 = 0.02;
 
-/// The asset `spec` names, with a name for reports: `auto` (the library's nearest-sized asset
-/// of `class`), a `.ply` file (turned from its declared `up` axis) or an asset of the library.
-pub fn resolve(
-    spec: &str,
-    library_dir: &Path,
-    up: UpAxis,
-    class: ObjectClass,
-    size_lwh: [f64; 3],
-) -> Result<(String, Gaussians), RenderError> {
-    if spec == AUTO {
-        let lib = Library::load(library_dir)?;
-        let entry = lib.nearest(class, size_lwh).ok_or_else(|| RenderError::Settings {
-            what: format!("asset `auto` for a {} of size {size_lwh:?}", class.as_str()),
-            detail: format!("the library {} has no asset of that class", library_dir.join(INDEX_FILE).display()),
-        })?;
-        return Ok((entry.name.clone(), lib.read(library_dir, entry)?));
-    }
-    let path = Path::new(spec);
-    if spec.to_ascii_lowercase().ends_with(".ply") || path.is_file() {
-        return Ok((spec.to_string(), read_asset_ply(path, up)?));
-    }
-    let lib = Library::load(library_dir)?;
-    let entry = lib.get(spec).ok_or_else(|| RenderError::Settings {
-        what: format!("asset `{spec}`"),
-        detail: format!(
-            "is neither a .ply file nor an asset of {} (assets: {})",
-            library_dir.join(INDEX_FILE).display(),
-            lib.assets.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(", ")
-        ),
-    })?;
-    Ok((entry.name.clone(), lib.read(library_dir, entry)?))
+/// `g` without its nearly transparent Gaussians (opacity below [`MIN_ASSET_OPACITY`]).
+pub fn without_transparent(g: &Gaussians) -> Gaussians {
+    let mut g = g.clone();
+    let keep: Vec<bool> = g.opacity_logits.iter().map(|&o| splat::gaussians::sigmoid(o) >= MIN_ASSET_OPACITY).collect();
+    recon::model::retain(&mut g, &keep);
+    g
 }
 
 /// The Gaussians of actor `track` of the model in `model_dir` (its box frame: x forward, z up),
@@ -268,9 +335,7 @@ pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 
     let (model, _) = recon::model_io::load_model(model_dir)?;
     let actor =
         model.actors.iter().find(|a| a.track_id == track).ok_or_else(|| RenderError::no_actor(&model, track))?;
-    let mut g = actor.gaussians.clone();
-    let keep: Vec<bool> = g.opacity_logits.iter().map(|&o| splat::gaussians::sigmoid(o) >= 0.02).collect();
-    recon::model::retain(&mut g, &keep);
+    let g = without_transparent(&actor.gaussians);
     if g.is_empty() {
         return Err(RenderError::Settings {
             what: format!("{}: actor `{track}`", model_dir.display()),
@@ -281,57 +346,4 @@ pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn entry(name: &str, class: ObjectClass, size_lwh: [f64; 3]) -> AssetEntry {
-        AssetEntry {
-            name: name.into(),
-            class,
-            size_lwh,
-            source: AssetSource::Synth { vehicle: name.into(), method: "test".into() },
-            file: format!("{name}.ply"),
-            up: UpAxis::Z,
-            gaussians: 1,
-            sh_degree: 0,
-        }
-    }
-
-    #[test]
-    fn auto_picks_the_nearest_size_of_the_class() {
-        let lib = Library {
-            format: LIBRARY_FORMAT.into(),
-            assets: vec![
-                entry("sedan", ObjectClass::Vehicle, [4.5, 1.85, 1.48]),
-                entry("truck", ObjectClass::Vehicle, [7.5, 2.4, 3.0]),
-                entry("person", ObjectClass::Pedestrian, [0.6, 0.6, 1.8]),
-            ],
-        };
-        assert_eq!(lib.nearest(ObjectClass::Vehicle, [4.2, 1.8, 1.5]).unwrap().name, "sedan");
-        assert_eq!(lib.nearest(ObjectClass::Vehicle, [8.0, 2.5, 3.2]).unwrap().name, "truck");
-        assert_eq!(lib.nearest(ObjectClass::Pedestrian, [8.0, 2.5, 3.2]).unwrap().name, "person");
-        assert!(lib.nearest(ObjectClass::Cyclist, [1.8, 0.6, 1.7]).is_none());
-    }
-
-    #[test]
-    fn up_axes_are_proper_rotations_taking_the_axis_to_z() {
-        let axes = [
-            (UpAxis::Z, [0.0, 0.0, 1.0]),
-            (UpAxis::NegZ, [0.0, 0.0, -1.0]),
-            (UpAxis::Y, [0.0, 1.0, 0.0]),
-            (UpAxis::NegY, [0.0, -1.0, 0.0]),
-            (UpAxis::X, [1.0, 0.0, 0.0]),
-            (UpAxis::NegX, [-1.0, 0.0, 0.0]),
-        ];
-        for (up, v) in axes {
-            let r = up.z_up_from_asset();
-            assert_eq!(super::super::covariance::mat_vec(&r, v), [0.0, 0.0, 1.0], "{up:?}");
-            let d = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
-                - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-                + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
-            assert_eq!(d, 1.0, "{up:?}");
-        }
-        assert_eq!(UpAxis::parse("-y").unwrap(), UpAxis::NegY);
-        assert!(UpAxis::parse("up").unwrap_err().to_string().contains("up axis `up`"));
-    }
-}
+mod tests;

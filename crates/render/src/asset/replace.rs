@@ -11,8 +11,9 @@
 //! alignment report of each replacement (all four candidates with both terms).
 
 use super::align::{align, AlignOptions, Alignment, Frame};
+use super::auto::{resolve, AutoChoice, AutoQuery};
 use super::covariance::{transform, with_sh_degree};
-use super::library::{geometry_points, resolve, UpAxis, AUTO};
+use super::library::{body_colour, geometry_points, UpAxis};
 use crate::RenderError;
 use recon::SceneModel;
 use scene::ObjectClass;
@@ -35,6 +36,9 @@ pub struct Replacement {
     /// Whether the actor's own Gaussians were too few and the box's faces were used.
     pub box_points: bool,
     pub alignment: Alignment,
+    /// Why `auto` chose the asset (`None` for an asset named by the user).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto: Option<AutoChoice>,
 }
 
 /// Points on the faces of a box of `size` centred at the origin, about 0.1 m apart.
@@ -100,6 +104,7 @@ pub fn replace_actor(
         gaussians_after: asset.len(),
         box_points: use_box,
         alignment: a,
+        auto: None,
     })
 }
 
@@ -114,32 +119,44 @@ pub fn parse_replace_arg(arg: &str) -> Result<(String, String), RenderError> {
     }
 }
 
-/// Replaces each `(track, asset spec)` of `model` in memory (`library::resolve`); the track's
-/// class (for `auto`) comes from the scene in `scene_dir`.
+/// Replaces each `(track, asset spec)` of `model` in memory (`auto::resolve`). For `auto`, the
+/// track's class comes from the scene in `scene_dir`, its colour from its actor, and the track's
+/// own asset from this scene or from `model_dir` (the model's directory, where it has one) is
+/// never chosen.
 pub fn replace_specs(
     model: &mut SceneModel,
     scene_dir: &Path,
+    model_dir: Option<&Path>,
     replacements: &[(String, String)],
     library_dir: &Path,
     up: UpAxis,
     opts: &AlignOptions,
 ) -> Result<Vec<Replacement>, RenderError> {
     let mut done = Vec::with_capacity(replacements.len());
+    let mut scene: Option<scene::Scene> = None;
     for (track, spec) in replacements {
-        let class = if spec == AUTO {
-            let sc = scene::load_scene(scene_dir)?;
-            sc.track(track).map_or(ObjectClass::Vehicle, |t| t.class)
-        } else {
-            ObjectClass::Vehicle
+        if spec == super::auto::AUTO && scene.is_none() {
+            scene = Some(scene::load_scene(scene_dir)?);
+        }
+        let class = scene.as_ref().and_then(|s| s.track(track)).map_or(ObjectClass::Vehicle, |t| t.class);
+        let actor = model.actors.iter().find(|a| &a.track_id == track);
+        let q = AutoQuery {
+            track_id: track,
+            class,
+            size_lwh: actor.map_or([0.0; 3], |a| a.size_lwh),
+            colour: actor.and_then(|a| body_colour(&a.gaussians)),
+            scene: scene.as_ref().map(|s| s.name.as_str()),
+            model_dir,
         };
-        let size = model.actors.iter().find(|a| &a.track_id == track).map_or([0.0; 3], |a| a.size_lwh);
-        let (name, g) = resolve(spec, library_dir, up, class, size)?;
-        done.push(replace_actor(model, track, &name, &g, opts)?);
+        let r = resolve(spec, library_dir, up, &q)?;
+        let mut rep = replace_actor(model, track, &r.name, &r.gaussians, opts)?;
+        rep.auto = r.auto;
+        done.push(rep);
     }
     Ok(done)
 }
 
-/// Loads the model in `model_dir`, replaces each `(track, asset spec)` (`library::resolve`:
+/// Loads the model in `model_dir`, replaces each `(track, asset spec)` (`auto::resolve`:
 /// `auto`, a PLY file or a library name) and writes the result to `out_dir` (not `model_dir`).
 /// The track's class (for `auto`) comes from the scene the model was trained on.
 pub fn replace_in_dir(
@@ -163,7 +180,7 @@ pub fn replace_in_dir(
     let (mut model, mut record) = recon::model_io::load_model(model_dir)?;
     let cfg = recon::model_io::load_config(model_dir)?;
     let scene_dir = record.scene_dir.clone();
-    let done = replace_specs(&mut model, &scene_dir, replacements, library_dir, up, opts)?;
+    let done = replace_specs(&mut model, &scene_dir, Some(model_dir), replacements, library_dir, up, opts)?;
     recon::model_io::write_model(out_dir, &model, &mut record, &cfg, None)?;
     scene::format::write_json_pretty(&out_dir.join(REPLACEMENTS_FILE), &done)?;
     Ok(done)
