@@ -137,6 +137,7 @@ fn write_model_dir(dir: &Path, scene_dir: &Path, scene: &Scene) -> PathBuf {
         })
         .collect();
     let model = SceneModel {
+        antialiased: false,
         background: box_gaussians([1.0; 3], [0.0; 3]),
         actors,
         sky: recon::sky::Sky::new(2, [0.5, 0.6, 0.8]),
