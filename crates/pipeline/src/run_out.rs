@@ -47,7 +47,8 @@ fn foreign_inside(sub: &str, name: &str, path: &Path) -> Result<Option<PathBuf>,
     let ours = match sub {
         "placement" => file && name.starts_with('t') && name.ends_with(".png"),
         _ if name.starts_with('.') && name.ends_with(".tmp") => true,
-        _ if file => name.ends_with(".mp4"),
+        // The videos and their MinTTC stills (`run::Climax`).
+        _ if file => name.ends_with(".mp4") || name.ends_with("-minttc.png"),
         _ if name.ends_with("_frames") && path.is_dir() => {
             return Ok(render::clip_out::foreign_in_frames_dir(path)?.map(|n| path.join(n)));
         }
@@ -176,6 +177,7 @@ mod tests {
         std::fs::create_dir_all(d.join("videos/front3_frames")).unwrap();
         std::fs::write(d.join("videos/front3_frames/frame_000000.png"), b"png").unwrap();
         std::fs::write(d.join("videos/front3.mp4"), b"mp4").unwrap();
+        std::fs::write(d.join("videos/front3-minttc.png"), b"png").unwrap();
         std::fs::create_dir(d.join("placement")).unwrap();
         std::fs::write(d.join("placement/t1.00_FRONT.png"), b"png").unwrap();
         check_out(&d).unwrap();

@@ -35,6 +35,9 @@ pub struct TrainConfig {
     /// training images could tell, and a car drawn closer than the log saw it stays whole instead
     /// of breaking into needles. 0: off. Baked into the saved model.
     pub filter_3d: f64,
+    /// The 3D filter on the actors alone: a corner case brings a vehicle closer than the log saw
+    /// it, while the street is seen from the log's own path; the background keeps its detail.
+    pub filter_3d_actors_only: bool,
     /// Vehicles (cars, vans, trucks, buses) are drawn with their mirror image about the box's long
     /// vertical plane (y -> -y in the box frame): a side the log saw stands in for the side it did
     /// not. Pedestrians and cyclists are not mirrored. Baked into the saved model.
@@ -153,6 +156,7 @@ impl Default for TrainConfig {
             checkpoint_min_seconds: 300.0,
             antialiased: false,
             filter_3d: 0.0,
+            filter_3d_actors_only: false,
             mirror_vehicles: false,
             actors_at_image_time: false,
             protocol: crate::protocol::Protocol::None,

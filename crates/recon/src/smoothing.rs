@@ -104,12 +104,22 @@ pub fn samplers(model: &SceneModel, scene: &Scene, views: &[View]) -> Vec<Vec<Sa
 }
 
 /// The filter variance (m^2) of every row of every set of `model` under `factor` (`filter_3d`);
-/// `mirrored[a]` counts actor `a`'s rows' mirror images (y -> -y) too.
-pub fn variances(model: &SceneModel, samplers: &[Vec<Sampler>], factor: f64, mirrored: &[bool]) -> Vec<Vec<f64>> {
+/// `mirrored[a]` counts actor `a`'s rows' mirror images (y -> -y) too. With `actors_only` the
+/// background's rows get none, and the unseen rows' fill is the largest of the actors' seen rows.
+pub fn variances(
+    model: &SceneModel,
+    samplers: &[Vec<Sampler>],
+    factor: f64,
+    mirrored: &[bool],
+    actors_only: bool,
+) -> Vec<Vec<f64>> {
     let rates: Vec<Vec<f64>> = model
         .sets()
         .enumerate()
         .map(|(k, g)| {
+            if k == 0 && actors_only {
+                return vec![-1.0; g.len()];
+            }
             let mirror = k > 0 && mirrored.get(k - 1).copied().unwrap_or(false);
             let s = &samplers[k];
             g.means
@@ -128,7 +138,17 @@ pub fn variances(model: &SceneModel, samplers: &[Vec<Sampler>], factor: f64, mir
         .collect();
     let var = |rate: f64| factor / (rate * rate);
     let unseen = rates.iter().flatten().filter(|r| **r > 0.0).map(|r| var(*r)).fold(0.0, f64::max);
-    rates.into_iter().map(|rs| rs.into_iter().map(|r| if r > 0.0 { var(r) } else { unseen }).collect()).collect()
+    // A rate of -1 marks a row the filter leaves alone.
+    let of = |r: f64| {
+        if r > 0.0 {
+            var(r)
+        } else if r < 0.0 {
+            0.0
+        } else {
+            unseen
+        }
+    };
+    rates.into_iter().map(|rs| rs.into_iter().map(of).collect()).collect()
 }
 
 /// The log-scales and opacity logit of a row convolved with a filter of variance `f2`.

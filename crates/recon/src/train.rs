@@ -75,7 +75,8 @@ pub(crate) fn refresh_smoothing(
     mirrored: &[bool],
 ) {
     if cfg.filter_3d > 0.0 {
-        state.smoothing = crate::smoothing::variances(&state.model, samplers, cfg.filter_3d, mirrored);
+        let only = cfg.filter_3d_actors_only;
+        state.smoothing = crate::smoothing::variances(&state.model, samplers, cfg.filter_3d, mirrored, only);
     }
 }
 

@@ -41,6 +41,11 @@ fn cfg_features() -> TrainConfig {
     TrainConfig { antialiased: true, filter_3d: 0.2, mirror_vehicles: true, ..cfg() }
 }
 
+/// [`cfg_features`] with the 3D filter on the actors alone (the real-street GPU settings').
+fn cfg_actor_filter() -> TrainConfig {
+    TrainConfig { filter_3d_actors_only: true, ..cfg_features() }
+}
+
 /// Leaves a block of every view out of training (`protocol::leave_out`), as the protocols do.
 fn leave_out_blocks(views: &mut [recon::data::View]) {
     for v in views.iter_mut() {
@@ -152,7 +157,8 @@ fn one_device_step_matches_the_host_step() {
 #[test]
 fn one_device_step_with_the_filters_mirrors_and_left_out_pixels_matches_the_host_step() {
     let Some(gpu) = gpu("the device trainer parity test with the adversary features") else { return };
-    step_parity(gpu, cfg_features(), true);
+    step_parity(gpu.clone(), cfg_features(), true);
+    step_parity(gpu, cfg_actor_filter(), false);
 }
 
 fn step_parity(gpu: Arc<splat_cuda::Gpu>, cfg: TrainConfig, left_out: bool) {
@@ -183,7 +189,11 @@ fn step_parity(gpu: Arc<splat_cuda::Gpu>, cfg: TrainConfig, left_out: bool) {
                     worst(d, h, 3)
                 );
             }
-            assert!(hs.iter().flatten().all(|v| *v > 0.0), "every row has a filter");
+            let background = if cfg.filter_3d_actors_only { 0.0 } else { f64::MIN_POSITIVE };
+            assert!(
+                hs[0].iter().all(|v| *v >= background) && hs[0].iter().all(|v| cfg.filter_3d_actors_only != (*v > 0.0))
+            );
+            assert!(hs[1..].iter().flatten().all(|v| *v > 0.0), "every actor row has a filter");
         }
         let hr = host.step();
         let dr = dev.step().unwrap();

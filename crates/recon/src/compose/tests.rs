@@ -73,6 +73,22 @@ fn functional(c: &Composed, gw: &Gradients) -> f64 {
     s + gw.sh.iter().zip(&w.sh).map(|(a, b)| a * b).sum::<f64>()
 }
 
+/// Deterministic pseudo-random world gradients for every row of `c` (seeded by `x`).
+fn world_gradients(c: &Composed, mut x: f64) -> Gradients {
+    let mut gw = Gradients::default();
+    gw.reset(&c.world, 0);
+    let mut next = || {
+        x = (x * 7.3 + 0.31) % 1.0;
+        x - 0.5
+    };
+    gw.means.iter_mut().flatten().for_each(|v| *v = next());
+    gw.log_scales.iter_mut().flatten().for_each(|v| *v = next());
+    gw.rotations.iter_mut().flatten().for_each(|v| *v = next());
+    gw.opacity_logits.iter_mut().for_each(|v| *v = next());
+    gw.sh.iter_mut().for_each(|v| *v = next());
+    gw
+}
+
 #[test]
 fn scatter_is_the_adjoint_of_compose() {
     let (sc, mut m) = (scene(), model());
@@ -81,18 +97,7 @@ fn scatter_is_the_adjoint_of_compose() {
         let mut c = Composed::default();
         compose_into(&m, &sc, 0.5, degree, Layers::All, &none, &mut c);
         assert_eq!(c.world.len(), 7);
-        let mut gw = Gradients::default();
-        gw.reset(&c.world, 0);
-        let mut x = 0.1;
-        let mut next = || {
-            x = (x * 7.3 + 0.31) % 1.0;
-            x - 0.5
-        };
-        gw.means.iter_mut().flatten().for_each(|v| *v = next());
-        gw.log_scales.iter_mut().flatten().for_each(|v| *v = next());
-        gw.rotations.iter_mut().flatten().for_each(|v| *v = next());
-        gw.opacity_logits.iter_mut().for_each(|v| *v = next());
-        gw.sh.iter_mut().for_each(|v| *v = next());
+        let gw = world_gradients(&c, 0.1);
         let mut grads: Vec<_> = m.sets().map(zeros_like).collect();
         scatter_gradients(&c, &gw, &mut grads);
         let base = functional(&c, &gw);
@@ -186,18 +191,7 @@ fn scatter_is_the_adjoint_of_compose_through_the_mirror_and_the_filter() {
     assert_eq!((c.world.len(), c.parts.len()), (11, 3));
     assert!(c.parts[2].mirror && c.parts[2].actor == Some(0));
     assert_eq!(c.set_row(9), Some((1, 2)), "a mirrored row belongs to its model row");
-    let mut gw = Gradients::default();
-    gw.reset(&c.world, 0);
-    let mut x = 0.3;
-    let mut next = || {
-        x = (x * 7.3 + 0.31) % 1.0;
-        x - 0.5
-    };
-    gw.means.iter_mut().flatten().for_each(|v| *v = next());
-    gw.log_scales.iter_mut().flatten().for_each(|v| *v = next());
-    gw.rotations.iter_mut().flatten().for_each(|v| *v = next());
-    gw.opacity_logits.iter_mut().for_each(|v| *v = next());
-    gw.sh.iter_mut().for_each(|v| *v = next());
+    let gw = world_gradients(&c, 0.3);
     let mut grads: Vec<_> = m.sets().map(zeros_like).collect();
     scatter_gradients(&c, &gw, &mut grads);
     let base = functional(&c, &gw);
@@ -235,9 +229,11 @@ fn scatter_is_the_adjoint_of_compose_through_the_mirror_and_the_filter() {
 
 #[test]
 fn a_mirrored_actor_looks_like_the_original_from_the_mirrored_camera() {
-    // Render the mirror image from a camera, and the original from that camera mirrored about the
-    // box's x-z plane (the car at the origin with heading 0, so box = world): the same picture,
-    // left and right swapped.
+    // The box frame is the world here (a car at the origin, heading 0). The mirrored camera is
+    // `F camera_from_world M` (M = diag(1, -1, 1) the mirror, F = diag(-1, 1, 1) flipping the image
+    // so the frame stays right-handed): it sees the mirror image of what the camera sees, its
+    // image flipped left-right. So the mirrored Gaussians from the camera equal the originals from
+    // the mirrored camera, flipped.
     let cam = splat::Camera {
         width: 40,
         height: 30,
@@ -245,12 +241,11 @@ fn a_mirrored_actor_looks_like_the_original_from_the_mirrored_camera() {
         fy: 30.0,
         cx: 20.0,
         cy: 15.0,
-        // Behind and to the left of the box (world y = 3), looking along +x: OpenCV x = -y_w.
+        // At world (-6, 3, 0.5), looking along +x (OpenCV x = -y_w, y = -z_w).
         camera_from_world: [[0.0, -1.0, 0.0, 3.0], [0.0, 0.0, -1.0, 0.5], [1.0, 0.0, 0.0, 6.0], [0.0, 0.0, 0.0, 1.0]],
         near: 0.01,
         far: 1e4,
     };
-    // The mirrored camera: world y negated; in image terms x flips, so M on both sides.
     let mirrored_cam = splat::Camera {
         camera_from_world: [[0.0, -1.0, 0.0, -3.0], [0.0, 0.0, -1.0, 0.5], [1.0, 0.0, 0.0, 6.0], [0.0, 0.0, 0.0, 1.0]],
         ..cam
@@ -270,8 +265,6 @@ fn a_mirrored_actor_looks_like_the_original_from_the_mirrored_camera() {
     let feats = splat::render::Features::default();
     let a = splat::render::render(&mirrored, &cam, &feats, &opts);
     let b = splat::render::render(&g, &mirrored_cam, &feats, &opts);
-    // The mirrored camera's image is the reflection of a camera whose x axis is reversed: our
-    // `mirrored_cam` keeps a right-handed frame, so its image is `a` flipped left-right.
     let (w, h) = (40usize, 30usize);
     let mut worst: f64 = 0.0;
     let mut lit = 0;

@@ -271,9 +271,10 @@ __device__ __forceinline__ float sampler_rate(const Sampler& v, float x, float y
 
 // rate[i]: the finest rate of row i (0: unseen); rate_min: the smallest positive rate of all rows
 // (float bits, which order as integers for positive floats; 0xffffffff: none). `sets` holds, per
-// set, its first row, its first sampler, its sampler count and whether it is mirrored.
-extern "C" __global__ void smooth_rates(int n, int nsets, const int* sets, const Sampler* samplers, const float* means,
-                                        float* rate, unsigned* rate_min) {
+// set, its first row, its first sampler, its sampler count and whether it is mirrored. Rows before
+// `first_row` (the background, when the filter is on the actors alone) get rate -1: no filter.
+extern "C" __global__ void smooth_rates(int n, int nsets, int first_row, const int* sets, const Sampler* samplers,
+                                        const float* means, float* rate, unsigned* rate_min) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     unsigned key = 0xffffffffu;
     if (i < n) {
@@ -291,6 +292,7 @@ extern "C" __global__ void smooth_rates(int n, int nsets, const int* sets, const
             r = fmaxf(r, sampler_rate(v, x, y, z));
             if (st[3]) r = fmaxf(r, sampler_rate(v, x, -y, z));
         }
+        if (i < first_row) r = -1.0f;
         rate[i] = r;
         if (r > 0.0f) key = __float_as_uint(r);
     }
@@ -307,7 +309,7 @@ extern "C" __global__ void smooth_finish(int n, float factor, const unsigned* ra
     unsigned km = *rate_min;
     float rmin = km == 0xffffffffu ? 0.0f : __uint_as_float(km);
     float use = r > 0.0f ? r : rmin;
-    f2[i] = use > 0.0f ? factor / (use * use) : 0.0f;
+    f2[i] = r < 0.0f ? 0.0f : use > 0.0f ? factor / (use * use) : 0.0f;
 }
 
 // How many Gaussians the forward pass drew, into counts[1].

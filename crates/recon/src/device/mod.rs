@@ -103,7 +103,9 @@ impl<'a> DeviceTrainer<'a> {
             false => None,
             true => {
                 let samplers = crate::smoothing::samplers(&state.model, scene, views);
-                let mut ds = smooth::DeviceSmoothing::new(&s, &samplers, &mirrored, cfg.filter_3d).map_err(dev)?;
+                let only = cfg.filter_3d_actors_only;
+                let mut ds =
+                    smooth::DeviceSmoothing::new(&s, &samplers, &mirrored, cfg.filter_3d, only).map_err(dev)?;
                 // A resumed run has its filter; a fresh one computes it before the first step.
                 match crate::train::smoothing_fits(&state) {
                     true => ds.upload(&s, &state.smoothing).map_err(cuda)?,

@@ -20,6 +20,8 @@ pub(crate) struct DeviceSmoothing {
     /// The variance of every row (`offsets` order).
     pub f2: CudaSlice<f32>,
     factor: f32,
+    /// The background is left alone (`TrainConfig::filter_3d_actors_only`).
+    actors_only: bool,
 }
 
 impl DeviceSmoothing {
@@ -29,6 +31,7 @@ impl DeviceSmoothing {
         samplers: &[Vec<crate::smoothing::Sampler>],
         mirrored: &[bool],
         factor: f64,
+        actors_only: bool,
     ) -> Result<DeviceSmoothing, DriverError> {
         let mut flat = Vec::new();
         let mut table = Vec::new();
@@ -45,6 +48,7 @@ impl DeviceSmoothing {
             rate_min: s.alloc_zeros(1)?,
             f2: s.alloc_zeros(1)?,
             factor: factor as f32,
+            actors_only,
         })
     }
 
@@ -62,12 +66,14 @@ impl DeviceSmoothing {
         s.memcpy_htod(&flat, &mut self.table_dev.slice_mut(0..flat.len()))?;
         s.memcpy_htod(&[u32::MAX], &mut self.rate_min)?;
         let (n32, nsets) = (n as i32, self.table.len() as i32);
+        let first_row = if self.actors_only { dm.offsets.get(1).copied().unwrap_or(0) as i32 } else { 0 };
         // SAFETY: `table_dev` holds 4 ints a set, `samplers` every set's samplers, the means and
         // `f2` every row.
         unsafe {
             s.launch_builder(&k.smooth_rates)
                 .arg(&n32)
                 .arg(&nsets)
+                .arg(&first_row)
                 .arg(&self.table_dev)
                 .arg(&self.samplers)
                 .arg(&dm.p.means)
