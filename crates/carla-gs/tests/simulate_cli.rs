@@ -62,6 +62,7 @@ fn plan_for(scene: &scene::Scene) -> Plan {
             target: None,
             seed: None,
             path: None,
+            inserted: None,
         };
     }
     panic!("no moving vehicle in the scene");

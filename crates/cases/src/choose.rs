@@ -23,12 +23,16 @@ use metrics::CaseMetrics;
 use reason::agents::{plan_of_candidate, ranked_candidates, ranked_candidates_with};
 use reason::planner::{Breadth, Candidate};
 use reason::world::World;
+use reason::insert::InsertMode;
 use reason::ReasonOptions;
+use scene::inserted::Inserted;
 use scene::{Executed, Plan, Scene};
 use std::collections::BTreeMap;
 
 /// Rollouts tried at most for one attempt (over every start time).
 pub const MAX_ROLLOUTS: usize = 48;
+/// Rollouts tried at most of inserted adversaries, after the logged ones ([`reason::insert`]).
+pub const MAX_INSERTED_ROLLOUTS: usize = 24;
 /// Rollouts tried at most of candidates predicted to touch a bystander (the third pass): on the
 /// stress corpus none of them ever came out valid where the clear ones had not, and they were
 /// most of the rollouts of the attempts that are refused.
@@ -61,6 +65,8 @@ struct Search<'a> {
     scene: &'a Scene,
     cfg: &'a CaseConfig,
     tried: usize,
+    /// Rollouts allowed so far ([`MAX_ROLLOUTS`], then more for inserted adversaries).
+    limit: usize,
     best: Option<(Checked, usize, f64, &'static str)>,
     /// The best rollout's executed trajectory (for the pre-compensated retry).
     best_executed: Option<Executed>,
@@ -69,7 +75,7 @@ struct Search<'a> {
 
 impl Search<'_> {
     fn done(&self) -> bool {
-        self.tried >= MAX_ROLLOUTS || self.best.as_ref().is_some_and(|(b, ..)| verified(&b.metrics))
+        self.tried >= self.limit || self.best.as_ref().is_some_and(|(b, ..)| verified(&b.metrics))
     }
 
     /// Rolls out `cands` (ranked) in order until one is verified or the budget is spent.
@@ -81,12 +87,29 @@ impl Search<'_> {
         pass: &'static str,
         cands: impl Iterator<Item = (usize, &'c Candidate)>,
     ) -> Result<(), String> {
+        self.try_all_marked(world, o, off, pass, cands, None)
+    }
+
+    /// [`Search::try_all`], each plan marked with the inserted adversary `inserted` when given.
+    fn try_all_marked<'c>(
+        &mut self,
+        world: &World,
+        o: &ReasonOptions,
+        off: f64,
+        pass: &'static str,
+        cands: impl Iterator<Item = (usize, &'c Candidate)>,
+        inserted: Option<&Inserted>,
+    ) -> Result<(), String> {
         for (rank, c) in cands {
             if self.done() {
                 break;
             }
             self.tried += 1;
-            let plan = plan_of_candidate(world, o, c);
+            let mut plan = plan_of_candidate(world, o, c);
+            if let Some(ins) = inserted {
+                plan.inserted = Some(ins.clone());
+                plan.agent = format!("{} (inserted)", plan.agent);
+            }
             let executed = execute(self.scene, &plan, self.cfg).map_err(|e| format!("simulate: {e}"))?;
             let metrics = metrics::evaluate(&executed).map_err(|e| format!("metrics: {e}"))?;
             for r in &metrics.validity.reasons {
@@ -139,7 +162,48 @@ impl Search<'_> {
 ///
 /// A failing rollout stage is an error naming it.
 pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choice, String> {
-    let mut s = Search { scene, cfg, tried: 0, best: None, best_executed: None, why: BTreeMap::new() };
+    let mut s =
+        Search { scene, cfg, tried: 0, limit: MAX_ROLLOUTS, best: None, best_executed: None, why: BTreeMap::new() };
+    let insert = o.adversary.is_none() && o.insert != InsertMode::Never;
+    if o.adversary.is_some() || o.insert != InsertMode::Always {
+        logged(&mut s, o)?;
+    }
+    if insert && !s.done() {
+        s.limit = s.tried + MAX_INSERTED_ROLLOUTS;
+        for p in reason::insert::placements(scene, o) {
+            if s.done() {
+                break;
+            }
+            let o2 = ReasonOptions { adversary: Some(p.id.clone()), ..o.clone() };
+            let Some(world) = World::for_options(&p.scene, &o2) else { continue };
+            let ranked = ranked_candidates(&world, &o2).unwrap_or_default();
+            let pass = " (inserted)";
+            s.try_all_marked(&world, &o2, 0.0, pass, ranked.iter().enumerate(), Some(&p.inserted))?;
+        }
+    }
+    s.pre_compensate(o)?;
+    let tried = s.tried;
+    let Some((mut b, rank, off, pass)) = s.best else { return Ok(Choice::NoCandidate) };
+    if !b.metrics.validity.valid {
+        let counts: Vec<String> = s.why.iter().map(|(k, n)| format!("{} {n}", k.replace('_', " "))).collect();
+        return Ok(Choice::Refused(format!(
+            "{REFUSED_PREFIX} ({tried} rollout(s) tried from t0 to t0 + {:.1} s: {}): none handed over",
+            START_OFFSETS_S[START_OFFSETS_S.len() - 1],
+            counts.join(", ")
+        )));
+    }
+    let verdict = if verified(&b.metrics) {
+        "the first valid with zone hit and success"
+    } else {
+        "the best valid, none with zone hit and success"
+    };
+    b.how = format!("rollout-checked: candidate ranked {rank}{pass} at t0 + {off:.1} s, {verdict} of {tried} rollouts");
+    Ok(Choice::Chosen(Box::new(b)))
+}
+
+/// The logged road users' passes (see [`choose`]).
+fn logged(s: &mut Search, o: &ReasonOptions) -> Result<(), String> {
+    let scene = s.scene;
     let mut ordinary = Vec::new();
     for off in START_OFFSETS_S {
         let o2 = ReasonOptions { t0: o.t0 + off, ..o.clone() };
@@ -172,22 +236,5 @@ pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choi
     for (off, o2, world, k, c) in unclear.take(MAX_UNCLEAR_ROLLOUTS) {
         s.try_all(world, o2, off, " (predicted to touch a bystander)", std::iter::once((k, c)))?;
     }
-    s.pre_compensate(o)?;
-    let tried = s.tried;
-    let Some((mut b, rank, off, pass)) = s.best else { return Ok(Choice::NoCandidate) };
-    if !b.metrics.validity.valid {
-        let counts: Vec<String> = s.why.iter().map(|(k, n)| format!("{} {n}", k.replace('_', " "))).collect();
-        return Ok(Choice::Refused(format!(
-            "{REFUSED_PREFIX} ({tried} rollout(s) tried from t0 to t0 + {:.1} s: {}): none handed over",
-            START_OFFSETS_S[START_OFFSETS_S.len() - 1],
-            counts.join(", ")
-        )));
-    }
-    let verdict = if verified(&b.metrics) {
-        "the first valid with zone hit and success"
-    } else {
-        "the best valid, none with zone hit and success"
-    };
-    b.how = format!("rollout-checked: candidate ranked {rank}{pass} at t0 + {off:.1} s, {verdict} of {tried} rollouts");
-    Ok(Choice::Chosen(Box::new(b)))
+    Ok(())
 }

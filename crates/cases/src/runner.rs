@@ -184,6 +184,8 @@ pub(crate) fn refine_planner(
     last: &Plan,
     e: &Executed,
 ) -> Option<(Plan, String)> {
+    // An inserted adversary is a candidate like a logged one in the scene it was inserted into.
+    let scene = &*scene::inserted::with_inserted(scene, last).ok()?;
     let world = World::for_options(scene, &ReasonOptions { t0: last.start_time_s, ..o.clone() })?;
     if r == 1 {
         let target = DVec2::from(last.target?);
@@ -212,6 +214,7 @@ pub(crate) fn refine_planner(
         target: Some([c.target.x, c.target.y]),
         path: Some(c.path),
         reasoning: format!("refined: candidate ranked {r} by the planner"),
+        inserted: last.inserted.clone().filter(|_| c.vehicle_id == last.adversary_track),
         ..last.clone()
     };
     Some((plan, format!("candidate ranked {r}")))

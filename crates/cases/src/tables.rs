@@ -173,18 +173,20 @@ fn row1(
     results: &[&CaseResult],
     pick: impl Fn(&CaseResult) -> Option<&Round>,
     refine: bool,
+    split: bool,
 ) -> Table1Row {
     let rounds: Vec<&Round> = results.iter().filter_map(|r| pick(r)).collect();
     let col = |f: &dyn Fn(&Round) -> f64| stat(&rounds.iter().map(|r| f(r)).collect::<Vec<_>>());
     let count = |f: &dyn Fn(&Round) -> bool| rounds.iter().filter(|r| f(r)).count();
     let all_rounds: usize = results
         .iter()
+        .filter(|r| !split || pick(r).is_some())
         .map(|r| match &r.status {
             Status::Done { rounds, .. } => rounds.len(),
             _ => 0,
         })
         .sum();
-    let planned = results.iter().filter(|r| matches!(r.status, Status::Done { .. })).count();
+    let planned = if split { rounds.len() } else { results.iter().filter(|r| matches!(r.status, Status::Done { .. })).count() };
     Table1Row {
         agent,
         variant: variant.into(),
@@ -212,13 +214,32 @@ fn row1(
 pub const AS_PLANNED: &str = "as planned";
 pub const REFINED: &str = "+ refine";
 
+/// Suffixes of the rows that split an agent's planned attempts by adversary: logged road users
+/// and inserted ones ([`reason::insert`]); written only where some plan has an inserted one.
+/// These rows keep every attempt in their `attempts` (and in the `/ attempts` columns); their
+/// `planned` counts the attempts whose case has that kind of adversary, and their per-rollout
+/// columns are over those cases only. `no feasible` and `failed` are the agent's.
+pub const LOGGED_ROWS: &str = ", logged adversaries";
+pub const INSERTED_ROWS: &str = ", inserted adversaries";
+
 pub fn table1(results: &[CaseResult], agents: &[AgentName]) -> Vec<Table1Row> {
     let mut rows = Vec::new();
     for a in agents {
         let mine: Vec<&CaseResult> = results.iter().filter(|r| r.spec.agent == *a).collect();
-        rows.push(row1(*a, AS_PLANNED, &mine, |r| r.first(), false));
+        rows.push(row1(*a, AS_PLANNED, &mine, |r| r.first(), false, false));
         if a.refines() {
-            rows.push(row1(*a, REFINED, &mine, |r| r.best(), true));
+            rows.push(row1(*a, REFINED, &mine, |r| r.best(), true, false));
+        }
+        let inserted = |r: &Round| r.plan.inserted.is_some();
+        if mine.iter().any(|r| r.first().is_some_and(inserted) || r.best().is_some_and(inserted)) {
+            for (suffix, want) in [(LOGGED_ROWS, false), (INSERTED_ROWS, true)] {
+                let variant = format!("{AS_PLANNED}{suffix}");
+                rows.push(row1(*a, &variant, &mine, |r| r.first().filter(|x| inserted(x) == want), false, true));
+                if a.refines() {
+                    let variant = format!("{REFINED}{suffix}");
+                    rows.push(row1(*a, &variant, &mine, |r| r.best().filter(|x| inserted(x) == want), true, true));
+                }
+            }
         }
     }
     rows

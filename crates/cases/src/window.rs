@@ -144,6 +144,7 @@ mod tests {
             target: None,
             seed: None,
             path: None,
+            inserted: None,
         }
     }
 

@@ -136,6 +136,7 @@ fn sample_executed(scene: &Scene) -> Executed {
         target: None,
         seed: None,
         path: None,
+        inserted: None,
     };
     let ego = scene.ego_series();
     let times: Vec<f64> = (0..=80).map(|k| T0 + 0.5 + 0.05 * k as f64).collect();

@@ -49,6 +49,7 @@ fn plan_for(scene: &Scene) -> Option<Plan> {
             target: None,
             seed: None,
             path: None,
+            inserted: None,
         });
     }
     None

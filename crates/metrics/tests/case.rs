@@ -30,6 +30,7 @@ fn plan(zone: Zone, t1: f64, path: impl Fn(f64) -> (f64, f64)) -> Plan {
         target: None,
         seed: None,
         path: None,
+        inserted: None,
     }
 }
 

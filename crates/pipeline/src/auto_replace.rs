@@ -170,7 +170,33 @@ impl Swapper<'_> {
     pub fn swap(&self, executed: &Executed) -> Result<(Option<SceneModel>, AdversaryCheck), PipelineError> {
         let track = &executed.plan.adversary_track;
         let vehicle = self.harvest.vehicle(track);
-        let case_closest = case_closest_m(self.scene, executed, self.fps)?;
+        let scene = scene::inserted::with_inserted(self.scene, &executed.plan)
+            .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
+        let case_closest = case_closest_m(&scene, executed, self.fps)?;
+        if let Some(ins) = &executed.plan.inserted {
+            // Never seen by the log: always drawn from the library.
+            let mut model = crate::inserted::with_empty_actor(self.model, track, ins);
+            let pairs = [(track.clone(), AUTO.to_string())];
+            let done = render::asset::replace::replace_specs(
+                &mut model,
+                self.scene_dir,
+                Some(self.model_dir),
+                &pairs,
+                self.library,
+                UpAxis::Z,
+                &AlignOptions::default(),
+            )?;
+            let check = AdversaryCheck {
+                track_id: track.clone(),
+                log_closest_m: None,
+                well_seen: false,
+                case_closest_m: case_closest,
+                replaced: true,
+                why: format!("inserted ({}): drawn from the asset library", ins.lane),
+                auto: done.into_iter().next().and_then(|r| r.auto),
+            };
+            return Ok((Some(model), check));
+        }
         let mut check = AdversaryCheck {
             track_id: track.clone(),
             log_closest_m: vehicle.and_then(|v| v.observed.closest_m),

@@ -11,6 +11,7 @@ pub mod case;
 pub mod demo;
 pub mod error;
 pub mod fingerprint;
+pub mod inserted;
 pub mod outputs;
 pub mod real_log;
 pub mod replace_check;

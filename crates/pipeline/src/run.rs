@@ -309,12 +309,21 @@ fn run_inner<B: Backend>(
         }
         None => None,
     };
-    let model = swapped.as_ref().unwrap_or(inputs.model);
-    let view = CaseView::new(inputs.backend, model, inputs.scene, &executed)?;
+    // An inserted adversary joins the scene as a track, and the model as an asset from the
+    // library (the swap, where there is one) or the synthetic sedan.
+    let scene_with = scene::inserted::with_inserted(inputs.scene, &best.plan)
+        .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
+    let scene = &*scene_with;
+    let inserted_model = match (&best.plan.inserted, &swapped) {
+        (Some(ins), None) => Some(crate::inserted::with_sedan(inputs.model, &best.plan.adversary_track, ins)?),
+        _ => None,
+    };
+    let model = swapped.as_ref().or(inserted_model.as_ref()).unwrap_or(inputs.model);
+    let view = CaseView::new(inputs.backend, model, scene, &executed)?;
     let mut placement = Vec::new();
-    for t in check_times(inputs.scene, &view.adversary, best.plan.start_time_s, inputs.render.placement_checks) {
+    for t in check_times(scene, &view.adversary, best.plan.start_time_s, inputs.render.placement_checks) {
         if let Some((p, picture)) =
-            check_best_camera(inputs.backend, model, inputs.scene, &view.adversary, t, inputs.render.scale)?
+            check_best_camera(inputs.backend, model, scene, &view.adversary, t, inputs.render.scale)?
         {
             let name = format!("placement/t{:.2}_{}.png", p.t, p.camera);
             std::fs::create_dir_all(out.join("placement")).map_err(PipelineError::io(out))?;
@@ -326,9 +335,9 @@ fn run_inner<B: Backend>(
     let metrics_file =
         MetricsFile { metrics: best.metrics.clone(), placement: placement.clone(), attempts: summary.attempts.clone() };
     write_json_pretty(&out.join("metrics.json"), &metrics_file)?;
-    crate::outputs::write_xosc(inputs.scene, &executed, out, inputs.render.xosc_version)?;
+    crate::outputs::write_xosc(scene, &executed, out, inputs.render.xosc_version)?;
     files.extend(["scenario.xodr".into(), "scenario.xosc".into()]);
-    files.extend(crate::outputs::plots(inputs.scene, &best.plan, &executed, &best.metrics, out));
+    files.extend(crate::outputs::plots(scene, &best.plan, &executed, &best.metrics, out));
     summary.timings.push(Timing { stage: "export + checks".into(), seconds: clock.elapsed().as_secs_f64() });
 
     let clock = Instant::now();

@@ -8,7 +8,7 @@
 
 use crate::frenet::LanePath;
 use scene::glam::DVec2;
-use scene::map::{Map, Polyline};
+use scene::map::{Map, Polyline, Region};
 
 /// A lane is the vehicle's when its centreline passes within this distance (m) ...
 pub const MAX_LANE_DISTANCE_M: f64 = 2.0;
@@ -64,18 +64,26 @@ fn start_of(l: &Polyline) -> Option<(DVec2, f64)> {
     Some((a, (b - a).to_angle()))
 }
 
-/// A map's lanes with their bounding boxes, so that finding a vehicle's lane skips far lanes
-/// (the planner asks for every candidate). Built once per [`crate::world::World`].
+/// A map's lanes near the case ([`Map::cropped`] to the world's region, so a city's map costs
+/// what the case's few hundred metres of it cost) with their bounding boxes, so that finding a
+/// vehicle's lane skips far lanes (the planner asks for every candidate). Built once per
+/// [`crate::world::World`].
 #[derive(Clone, Debug)]
-pub struct Lanes<'a> {
-    pub map: &'a Map,
+pub struct Lanes {
+    /// The lanes inside the region only (road edges and lines are not kept).
+    pub map: Map,
     /// `[min x, min y, max x, max y]` of each lane's points.
     boxes: Vec<[f64; 4]>,
 }
 
-impl<'a> Lanes<'a> {
-    /// `None` when the map has no lanes.
-    pub fn new(map: &'a Map) -> Option<Lanes<'a>> {
+impl Lanes {
+    /// The lanes of `map` reaching into `region`; `None` when there are none.
+    pub fn new(map: &Map, region: &Region) -> Option<Lanes> {
+        Lanes::from_lanes(Map { lanes: scene::map::crop_lines(&map.lanes, region), ..Map::default() })
+    }
+
+    /// Every lane of `map` (tests, and maps already cropped).
+    pub fn from_lanes(map: Map) -> Option<Lanes> {
         let boxes = map
             .lanes
             .iter()
@@ -119,7 +127,7 @@ impl<'a> Lanes<'a> {
     /// a merge) and successors, chained until the path reaches `ahead_m` past `from` (m along
     /// it), at each fork the successor passing nearest `toward`.
     pub fn chain(&self, start: usize, from: DVec2, toward: DVec2, ahead_m: f64) -> Option<LanePath> {
-        let map = self.map;
+        let map = &self.map;
         let mut pts = points(map.lanes.get(start)?);
         let mut ids = vec![map.lanes[start].id];
         let mut used = vec![start];
@@ -227,7 +235,7 @@ mod tests {
         let map = Map { lanes, ..Default::default() };
         let start = DVec2::new(60.0 * (-0.45f64).cos(), 60.0 * (-0.45f64).sin());
         let heading = -0.45 + std::f64::consts::FRAC_PI_2;
-        let index = Lanes::new(&map).expect("lanes");
+        let index = Lanes::from_lanes(map).expect("lanes");
         let (i, dist) = index.lane_of(start + DVec2::new(0.3, 0.0), heading).expect("on the lane");
         assert!(dist < 0.31, "{dist}");
         assert_eq!(index.lane_of(start, heading + std::f64::consts::PI), None, "wrong way");
@@ -255,7 +263,7 @@ mod tests {
     fn centreline_point_snaps_sideways() {
         let map = Map { lanes: arc_lanes(1, 60.0, -0.5, 1.0, 10.0), ..Default::default() };
         let p = DVec2::new(59.0, 1.0);
-        let c = Lanes::new(&map).unwrap().centreline_point(p, std::f64::consts::FRAC_PI_2).expect("near a lane");
+        let c = Lanes::from_lanes(map).unwrap().centreline_point(p, std::f64::consts::FRAC_PI_2).expect("near a lane");
         assert!((c.length() - 60.0).abs() < 0.01 && c.normalize().dot(p.normalize()) > 0.9999, "{c}");
     }
 }

@@ -14,6 +14,8 @@ pub mod constraints;
 pub mod early_lateral;
 pub mod frenet;
 pub mod from_rest;
+pub mod insert;
+pub mod insert_check;
 pub mod intent;
 pub mod lane_motion;
 pub mod lanes;
@@ -66,6 +68,11 @@ pub struct ReasonOptions {
     pub protocol: Protocol,
     /// What happens to a reply still invalid after the re-prompts: see [`Repair`].
     pub repair: Repair,
+    /// When an adversary may be inserted where the log has none ([`insert`]).
+    pub insert: insert::InsertMode,
+    /// The inserted vehicle's box (m; from the caller's asset library), else
+    /// [`insert::DEFAULT_CAR_LWH`].
+    pub insert_size_lwh: Option<[f64; 3]>,
 }
 
 /// How the LLM agents work.
@@ -110,6 +117,8 @@ impl Default for ReasonOptions {
             ttc_s: None,
             protocol: Protocol::Ours,
             repair: Repair::Planner,
+            insert: insert::InsertMode::Fallback,
+            insert_size_lwh: None,
         }
     }
 }
@@ -205,24 +214,38 @@ pub(crate) fn make_plan(
         target: Some([target.x, target.y]),
         seed: Some(o.seed),
         path: None,
+        inserted: None,
     }
 }
 
 /// Runs an agent at t0. Every plan returned passes `Plan::validate`.
-/// Refuses options and maps beyond the limits of [`budget`] first.
+/// Refuses options and maps beyond the limits of [`budget`] first. Where the planner finds no
+/// logged road user for the behaviour (or `o.insert` is `always`), it plans an inserted one
+/// ([`insert::plan_inserted`]) unless `o.insert` is `never` or an adversary was named.
 pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome, ReasonError> {
     budget::check(scene, o)?;
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
     let world = World::for_options(scene, o).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
+    // The planner inserts (the baselines and the LLM agents choose among the logged road users).
+    let may_insert = o.adversary.is_none() && o.behavior.is_some() && matches!(agent, Agent::Planner);
+    if may_insert && o.insert == insert::InsertMode::Always {
+        return Ok(insert::plan_inserted(scene, o));
+    }
     if let Err(reason) = constraints::check(scene, &world, o) {
         return Ok(Outcome::NoFeasible { reason });
     }
-    let out = match agent {
+    let mut out = match agent {
         Agent::Planner => agents::run_planner(&world, o),
         Agent::Llm(b) => agents::run_llm(&world, o, b)?,
         Agent::Rule => baselines::rule_based(&world, o),
         Agent::Random => baselines::random(&world, o),
     };
+    if let (Outcome::NoFeasible { reason }, true) = (&out, may_insert && o.insert == insert::InsertMode::Fallback) {
+        out = match insert::plan_inserted(scene, o) {
+            Outcome::NoFeasible { reason: why } => Outcome::NoFeasible { reason: format!("{reason}; {why}") },
+            planned => planned,
+        };
+    }
     if let Outcome::Plan { plan, .. } = &out {
         debug_assert!(plan.validate().is_ok(), "agents must return valid plans: {:?}", plan.validate());
     }

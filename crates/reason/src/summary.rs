@@ -30,7 +30,7 @@ impl Default for SummaryOptions {
 /// lane centre to the ego when the map has lanes.
 pub fn lane_offset(world: &World, p: DVec2) -> f64 {
     let local = world.to_ego_now(p);
-    let Some(map) = world.scene.map.as_ref().filter(|m| !m.lanes.is_empty()) else { return local.y };
+    let Some(map) = world.lanes.as_ref().map(|l| &l.map) else { return local.y };
     // Distance-to-polyline of the ego: the ego lane's lateral offset in the ego frame.
     let mut best: Option<(f64, f64)> = None;
     for lane in &map.lanes {

@@ -4,7 +4,14 @@
 
 use scene::glam::DVec2;
 use scene::motion::{sample_series, Pose2};
+use scene::map::Region;
 use scene::{ObjectClass, Scene, Track};
+
+/// How far beyond the candidate radius around the ego's path the map is kept (m): a
+/// candidate's lane chain reaches a few seconds ahead at road speeds.
+pub const REGION_MARGIN_M: f64 = 300.0;
+/// Seconds of the ego's path before t0 inside the region (a lane chain starts behind a vehicle).
+pub const REGION_HISTORY_S: f64 = 5.0;
 
 /// A vehicle's kinematic state at one instant (world frame).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,8 +78,12 @@ pub struct World<'a> {
     pub vulnerable: Vec<Vehicle>,
     /// Last time with a logged ego pose.
     pub t_last: f64,
-    /// The map's lanes, when it has some (map-aware plans, [`crate::lane_motion`]).
-    pub lanes: Option<crate::lanes::Lanes<'a>>,
+    /// The map's lanes within [`World::region`], when it has some (map-aware plans,
+    /// [`crate::lane_motion`]).
+    pub lanes: Option<crate::lanes::Lanes>,
+    /// The part of the ground the case can reach: the ego's logged path from t0 on (and the
+    /// seconds before it), grown by the candidate radius and [`REGION_MARGIN_M`].
+    pub region: Region,
     /// Every logged actor from t0 on, for clearance checks: built on first use, once per world.
     bystanders: std::sync::OnceLock<crate::clearance::Bystanders>,
 }
@@ -108,6 +119,8 @@ impl<'a> World<'a> {
         let vehicles = near(|c| c == ObjectClass::Vehicle);
         let vulnerable = near(ObjectClass::is_vulnerable);
         let t_last = ego_series.last().map_or(t0, |p| p.t);
+        let path = ego_series.iter().filter(|p| p.t >= t0 - REGION_HISTORY_S).map(|p| p.position());
+        let region = Region::around(path.chain([ego_now.p]), radius + REGION_MARGIN_M)?;
         Some(World {
             scene,
             t0,
@@ -115,7 +128,8 @@ impl<'a> World<'a> {
             ego_length: scene.ego.size_lwh[0],
             ego_width: scene.ego.size_lwh[1],
             t_last,
-            lanes: scene.map.as_ref().and_then(crate::lanes::Lanes::new),
+            lanes: scene.map.as_ref().and_then(|m| crate::lanes::Lanes::new(m, &region)),
+            region,
             ego_series,
             vehicles,
             vulnerable,

@@ -216,6 +216,7 @@ mod tests {
             target: None,
             seed: None,
             path: None,
+            inserted: None,
         };
         let times: Vec<f64> = (0..=40).map(|k| k as f64 * 0.05).collect();
         let step = |t: f64| ExecutedStep {

@@ -10,6 +10,7 @@ pub mod executed_check;
 pub mod format;
 pub mod frames;
 pub mod input;
+pub mod inserted;
 pub mod map;
 pub mod mobility;
 pub mod model;

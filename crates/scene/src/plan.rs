@@ -134,6 +134,10 @@ pub struct Plan {
     /// How the planner shaped the path (absent for agents that do not say).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub path: Option<PlanPath>,
+    /// The adversary is no logged road user but one the planner inserted
+    /// ([`crate::inserted`]); absent for a logged adversary.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inserted: Option<crate::inserted::Inserted>,
 }
 
 /// The geometry a planned path follows.
@@ -222,6 +226,15 @@ impl Plan {
                 return fail("target".into(), "must be finite".into());
             }
         }
+        if let Some(ins) = &self.inserted {
+            ins.validate()?;
+            if !self.adversary_track.starts_with(crate::inserted::INSERTED_PREFIX) {
+                return fail(
+                    "adversary_track".into(),
+                    format!("an inserted adversary's id starts with `{}`", crate::inserted::INSERTED_PREFIX),
+                );
+            }
+        }
         Ok(())
     }
 
@@ -264,6 +277,7 @@ pub(crate) mod tests {
             target: None,
             seed: None,
             path: None,
+            inserted: None,
         }
     }
 

@@ -104,8 +104,13 @@ pub struct Prepared<'a> {
     pub actors: Vec<Replayed>,
 }
 
+/// The scene with the plan's inserted adversary as a track (the scene itself when it has none).
+pub fn with_inserted<'a>(scene: &'a Scene, plan: &Plan) -> Result<std::borrow::Cow<'a, Scene>, SimError> {
+    scene::inserted::with_inserted(scene, plan).map_err(|(field, message)| SimError::Plan { field, message })
+}
+
 /// Checks the plan against the scene and the configuration against [`crate::budget`] and
-/// prepares a rollout of it.
+/// prepares a rollout of it (an inserted adversary must already be in `scene`: [`with_inserted`]).
 pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Prepared<'a>, SimError> {
     plan.validate().map_err(|(field, message)| SimError::Plan { field, message })?;
     // Every field's range before any work (the smoothing below runs `smoothing.iterations`).
@@ -158,8 +163,10 @@ pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result
     Ok(Prepared { adversary, t0, t_end, t_start, reference, initial, size, actors })
 }
 
-/// Runs the plan with the built-in physics. Checks the plan against the scene first.
+/// Runs the plan with the built-in physics. Checks the plan against the scene first; an
+/// inserted adversary ([`scene::inserted`]) joins the scene as a track first.
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig) -> Result<Executed, SimError> {
+    let scene = &*with_inserted(scene, plan)?;
     let prep = prepare(scene, plan, cfg)?;
     if let Some(limits) = prep.adversary.class.motion_limits() {
         // A pedestrian or cyclist: its own motion model (`vru`), not a car's.

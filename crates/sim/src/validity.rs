@@ -15,7 +15,7 @@
 use crate::tracker::StepRecord;
 use scene::executed::{Contact, InvalidReason, Validity};
 use scene::glam::DVec2;
-use scene::map::Map;
+use scene::map::{Map, Region};
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -59,9 +59,11 @@ pub fn segments_intersect(a0: DVec2, a1: DVec2, b0: DVec2, b1: DVec2) -> bool {
     on(b0, a0, a1, d1) || on(b1, a0, a1, d2) || on(a0, b0, b1, d3) || on(a1, b0, b1, d4)
 }
 
-/// Road-edge segments as `(edge id, start, end)` in the ground plane.
-fn edge_segments(map: &Map) -> Vec<(i64, DVec2, DVec2)> {
-    map.road_edges
+/// Road-edge segments as `(edge id, start, end)` in the ground plane, of the edges reaching into
+/// `region` only (a city's boundary polylines run for kilometres; the check needs the few metres
+/// around the adversary's path).
+fn edge_segments(map: &Map, region: &Region) -> Vec<(i64, DVec2, DVec2)> {
+    scene::map::crop_lines(&map.road_edges, region)
         .iter()
         .flat_map(|e| e.points.windows(2).map(move |w| (e.id, w[0].truncate(), w[1].truncate())))
         .collect()
@@ -115,9 +117,11 @@ pub fn assess(
     if let Some(c) = contact.filter(|c| c.other != "ego") {
         reasons.push(InvalidReason::ContactWithOther { t: c.t, other: c.other.clone(), class: c.class });
     }
-    let segs = map.map(edge_segments).unwrap_or_default();
+    let radius = 0.5 * size.length.hypot(size.width);
+    let path = records.iter().filter(|r| r.t >= t0 - 1e-9).map(|r| DVec2::new(r.state[0], r.state[1]));
+    let region = Region::around(path, radius + 1.0);
+    let segs = map.zip(region).map(|(m, r)| edge_segments(m, &r)).unwrap_or_default();
     if !segs.is_empty() {
-        let radius = 0.5 * size.length.hypot(size.width);
         let mut at_t0: Option<Vec<i64>> = None;
         let mut previous: Option<DVec2> = None;
         for r in records.iter().filter(|r| r.t >= t0 - 1e-9) {
@@ -144,7 +148,7 @@ pub fn assess(
         max_tracking_error_m: max_err,
         friction_limit_s: friction_s,
         max_abs_accel_lat: records.iter().map(|r| r.accel_lat.abs()).fold(0.0, f64::max),
-        road_checked: !segs.is_empty(),
+        road_checked: map.is_some_and(|m| !m.road_edges.is_empty()),
     }
 }
 

@@ -102,6 +102,7 @@ fn plan() -> Plan {
         target: None,
         seed: None,
         path: None,
+        inserted: None,
     }
 }
 

@@ -93,6 +93,7 @@ fn plan(adversary: &str, behavior: Behavior, ttc: f64, at: impl Fn(f64) -> DVec2
         target: Some([end.x, end.y]),
         seed: None,
         path: None,
+        inserted: None,
         waypoints,
     }
 }

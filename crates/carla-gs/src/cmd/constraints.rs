@@ -1,5 +1,6 @@
 //! Options shared by `reason`, `run` and `eval-cases`: the user's constraints on the adversary
-//! (`--adversary`, `--zone`, `--ttc`) and how the LLM agents work (`--protocol`, `--repair`).
+//! (`--adversary`, `--zone`, `--ttc`, `--insert`) and how the LLM agents work (`--protocol`, `--repair`).
+use reason::insert::InsertMode;
 use reason::{Protocol, ReasonOptions, Repair};
 
 #[derive(clap::Args, Clone, Debug, Default)]
@@ -13,6 +14,18 @@ pub struct ConstraintArgs {
     /// This time to collision (s; put on the --dt grid) instead of the behaviour's range.
     #[arg(long)]
     pub ttc: Option<f64>,
+    /// Whether the planner may insert an adversary where the log has none positioned for the
+    /// behaviour (docs/reasoning.md): never, fallback (default: when no logged road user is
+    /// positioned or every one fails) or always (inserted adversaries only).
+    #[arg(long, value_enum)]
+    pub insert: Option<InsertArg>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+pub enum InsertArg {
+    Never,
+    Fallback,
+    Always,
 }
 
 impl ConstraintArgs {
@@ -25,7 +38,12 @@ impl ConstraintArgs {
         if let Some(t) = self.ttc.filter(|t| !(t.is_finite() && *t > 0.0)) {
             anyhow::bail!("--ttc: must be a positive number of seconds, got {t}");
         }
-        Ok(ReasonOptions { adversary: self.adversary.clone(), zone: self.zone()?, ttc_s: self.ttc, ..o })
+        let insert = match self.insert {
+            Some(InsertArg::Never) => InsertMode::Never,
+            Some(InsertArg::Always) => InsertMode::Always,
+            Some(InsertArg::Fallback) | None => InsertMode::Fallback,
+        };
+        Ok(ReasonOptions { adversary: self.adversary.clone(), zone: self.zone()?, ttc_s: self.ttc, insert, ..o })
     }
 }
 

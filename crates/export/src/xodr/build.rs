@@ -5,7 +5,7 @@ use super::{Elevation, Lane, LineGeometry, Road, RoadNetwork, XodrOptions};
 use crate::error::ExportError;
 use crate::ground::{ego_ground_series, ground_series};
 use scene::glam::{DVec2, DVec3};
-use scene::map::Polyline;
+use scene::map::{Map, Polyline, Region};
 use scene::Scene;
 
 /// Consecutive polyline points closer than this are merged (m).
@@ -25,6 +25,8 @@ pub const LANE_WIDTH_RANGE_M: [f64; 2] = [0.5, 20.0];
 pub const EDGE_WIDTH_RANGE_M: [f64; 2] = [0.01, 20.0];
 /// Largest margin of a flat road (m).
 pub const MAX_FLAT_MARGIN_M: f64 = 1000.0;
+/// Largest margin of the map kept around the scene's motion (m).
+pub const MAX_MAP_MARGIN_M: f64 = 100_000.0;
 
 fn check_options(o: &XodrOptions) -> Result<(), ExportError> {
     let widths =
@@ -41,22 +43,34 @@ fn check_options(o: &XodrOptions) -> Result<(), ExportError> {
         let message = format!("must be a length from 0 to {MAX_FLAT_MARGIN_M} m, got {:?}", o.flat_margin_m);
         return Err(ExportError::BadOption { field: "flat_margin_m", message });
     }
+    if !(0.0..=MAX_MAP_MARGIN_M).contains(&o.map_margin_m) {
+        let message = format!("must be a length from 0 to {MAX_MAP_MARGIN_M} m, got {:?}", o.map_margin_m);
+        return Err(ExportError::BadOption { field: "map_margin_m", message });
+    }
     if !o.origin.is_finite() {
         return Err(ExportError::BadOption { field: "origin", message: format!("must be finite, got {}", o.origin) });
     }
     Ok(())
 }
 
+/// The part of `map` within `margin_m` of the scene's motion: the ego's path and every valid
+/// state of every track (the whole map when the scene has no motion to go by).
+fn cropped(scene: &Scene, map: &Map, margin_m: f64) -> Map {
+    let ego = scene.frames.iter().map(|f| f.world_from_ego.translation().truncate());
+    let actors = scene.tracks.iter().flat_map(|t| t.valid_states().map(|s| s.center.truncate()));
+    match Region::around(ego.chain(actors), margin_m) {
+        Some(region) => map.cropped(&region),
+        None => map.clone(),
+    }
+}
+
 /// Builds the network of `scene` (see the module doc of `xodr`).
 pub fn build_road_network(scene: &Scene, opts: &XodrOptions) -> Result<BuiltNetwork, ExportError> {
     check_options(opts)?;
-    if let Some(map) = &scene.map {
-        super::budget::check_map(map, opts.origin)?;
-    }
+    let map = scene.map.as_ref().map(|m| cropped(scene, m, opts.map_margin_m)).unwrap_or_default();
+    super::budget::check_map(&map, opts.origin)?;
     let mut roads = Vec::new();
     let mut skipped = Vec::new();
-    let empty = scene::map::Map::default();
-    let map = scene.map.as_ref().unwrap_or(&empty);
     let layers: [(&str, &[Polyline], &str, f64); 2] = [
         ("lanes", &map.lanes, "driving", opts.lane_width_m),
         ("road_edges", &map.road_edges, "border", opts.edge_width_m),

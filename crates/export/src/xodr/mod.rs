@@ -61,6 +61,11 @@ pub struct XodrOptions {
     /// Margin around the scene's motion covered by the flat road of a scene without lanes (m, at
     /// most [`MAX_FLAT_MARGIN_M`]).
     pub flat_margin_m: f64,
+    /// The map's lanes and road edges are written where they reach within this distance of the
+    /// scene's motion (the ego's path and every logged road user; m, at most
+    /// [`MAX_MAP_MARGIN_M`]): a city's map (kilometres of boundary polylines, tens of thousands
+    /// of lanes) becomes the case's neighbourhood, never a refusal for its size.
+    pub map_margin_m: f64,
     /// Subtracted from every world coordinate written (m).
     pub origin: DVec3,
     /// `header@date`; `None` writes none (same scene, same bytes).
@@ -69,7 +74,14 @@ pub struct XodrOptions {
 
 impl Default for XodrOptions {
     fn default() -> Self {
-        XodrOptions { lane_width_m: 3.5, edge_width_m: 0.3, flat_margin_m: 30.0, origin: DVec3::ZERO, date: None }
+        XodrOptions {
+            lane_width_m: 3.5,
+            edge_width_m: 0.3,
+            flat_margin_m: 30.0,
+            map_margin_m: 300.0,
+            origin: DVec3::ZERO,
+            date: None,
+        }
     }
 }
 

@@ -59,6 +59,7 @@ fn check(opts: &CarlaOptions, dt: f64) -> Result<(), CarlaError> {
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig, opts: &CarlaOptions) -> Result<Executed, SimError> {
     let dt = cfg.tracker.control_dt_s;
     check(opts, dt)?;
+    let scene = &*crate::rollout::with_inserted(scene, plan)?;
     let prep = prepare(scene, plan, cfg)?;
     if prep.adversary.class.is_vulnerable() {
         let (id, class) = (prep.adversary.id.clone(), prep.adversary.class.as_str());

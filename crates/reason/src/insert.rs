@@ -1,0 +1,269 @@
+//! Insertion: an adversary where the log has none positioned for the behaviour.
+//!
+//! The planner's candidates are the logged road users; on a real log the behaviour often has
+//! nobody in the right place (no lead car to brake, nobody in the next lane to cut in). Then a
+//! vehicle is placed where the log allows one, as if the log had seen it, and the ordinary
+//! planner plans it ([`plan_inserted`]); the plan marks it (`scenario.json`'s `inserted`, with
+//! its poses), so that every later stage puts it into the scene ([`scene::inserted`]).
+//!
+//! Where it goes ([`slots`]): on the ego's own logged path (its lane) or one lane width beside
+//! it ([`crate::behavior::LANE_WIDTH`]), ahead or behind by a headway, in traffic from the log's
+//! first frame; an oncoming car on the other side coming from beyond the cameras' range; a parked
+//! car at the kerb. A lane beside the ego must exist ([`crate::insert_check::lane_supported`]):
+//! a map lane heading the right way, or, without a map, logged traffic that drove there (lanes
+//! inferred from the traffic). The inserted box, grown by [`CLEARANCE_M`], overlaps no logged
+//! road user nor the ego at any frame up to t0 ([`crate::insert_check::first_overlap`]); what
+//! happens after t0 is the plan's, checked by the Execute stage like any other. Its size and class
+//! come from the asset library when the caller gives one (`ReasonOptions::insert_size_lwh`), else
+//! a mid-size car's.
+
+use crate::behavior::LANE_WIDTH;
+use crate::frenet::LanePath;
+use crate::insert_check::{first_overlap, lane_supported, oncoming_side, traffic, Support};
+use crate::world::World;
+use crate::{agents, Outcome, ReasonOptions};
+use scene::glam::DVec2;
+use scene::inserted::{Entry, Inserted, InsertedPose, INSERTED_PREFIX};
+use scene::{Behavior, ObjectClass, Scene, Track, TrackState};
+use serde::{Deserialize, Serialize};
+
+/// When the planner may insert an adversary (`--insert`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InsertMode {
+    /// Logged road users only.
+    Never,
+    /// Where no logged road user is positioned for the behaviour, or every one fails.
+    #[default]
+    Fallback,
+    /// Inserted adversaries only.
+    Always,
+}
+
+impl InsertMode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            InsertMode::Never => "never",
+            InsertMode::Fallback => "fallback",
+            InsertMode::Always => "always",
+        }
+    }
+}
+
+impl std::str::FromStr for InsertMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        [InsertMode::Never, InsertMode::Fallback, InsertMode::Always]
+            .into_iter()
+            .find(|m| m.as_str() == s)
+            .ok_or_else(|| format!("unknown insertion mode `{s}` (one of never, fallback, always)"))
+    }
+}
+
+/// A mid-size car's box (m), when the caller gives no size from its asset library.
+pub const DEFAULT_CAR_LWH: [f64; 3] = [4.6, 1.9, 1.55];
+/// Free space kept around the inserted box against every logged road user up to t0 (m).
+pub const CLEARANCE_M: f64 = 0.5;
+/// Straight extension of the ego's path at both ends (m): room for a car far ahead or behind.
+const EXTEND_M: f64 = 400.0;
+/// Lateral offset of a parked car's centre from its lane's centre (m).
+const KERB_OFFSET_M: f64 = 0.5 * LANE_WIDTH + 1.4;
+/// Slowest an inserted oncoming car drives (m/s).
+const MIN_ONCOMING_SPEED: f64 = 8.0;
+
+/// How the inserted car moves before the plan takes over, along the ego's path (s, m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Motion {
+    /// Keeps `gap` m of path ahead (+) or behind (-) the ego's position at every instant.
+    Follow { gap: f64 },
+    /// Drives against the ego's direction at `speed`, `gap` m of path ahead of the ego at t0.
+    Oncoming { gap: f64, speed: f64 },
+    /// Stands `gap` m of path ahead of the ego's position at t0.
+    Parked { gap: f64 },
+}
+
+/// One place to try: lateral offset (m, + left of the ego's path), motion and entry.
+#[derive(Clone, Debug)]
+struct Slot {
+    d: f64,
+    motion: Motion,
+    entry: Entry,
+    lane: &'static str,
+}
+
+/// An inserted road user and the scene with it added as a track.
+pub struct Placement {
+    pub id: String,
+    pub inserted: Inserted,
+    pub scene: Scene,
+}
+
+/// The ego's logged path (extended straight at both ends) as a reference path, and the ego's arc
+/// length on it at each frame's time; `None` when the ego hardly moves.
+fn ego_path(world: &World) -> Option<(LanePath, Vec<f64>)> {
+    let scene = world.scene;
+    let mut pts: Vec<DVec2> = Vec::new();
+    for p in &world.ego_series {
+        if pts.last().is_none_or(|q| q.distance(p.position()) > 0.2) {
+            pts.push(p.position());
+        }
+    }
+    let n = pts.len();
+    if n < 2 || pts[0].distance(pts[n - 1]) < 5.0 {
+        return None;
+    }
+    let (head, tail) = ((pts[1] - pts[0]).normalize(), (pts[n - 1] - pts[n - 2]).normalize());
+    pts.insert(0, pts[0] - head * EXTEND_M);
+    pts.push(pts[n] + tail * EXTEND_M);
+    let path = LanePath::from_points(pts, vec![])?;
+    let s = scene.frames.iter().map(|f| path.frenet(world.ego_pose(f.timestamp_s).position()).x).collect();
+    Some((path, s))
+}
+
+/// The places tried for behaviour `b`, in order (nearest the behaviour's usual geometry first).
+fn slots(world: &World, b: Behavior, left_oncoming: bool) -> Vec<Slot> {
+    let v = world.ego_now.speed().max(3.0);
+    let side = if left_oncoming { 1.0 } else { -1.0 };
+    let both = [side * -LANE_WIDTH, side * LANE_WIDTH]; // the same-direction side first
+    let follow = |d: f64, gaps: &[f64], lane: &'static str| -> Vec<Slot> {
+        gaps.iter().map(|&gap| Slot { d, motion: Motion::Follow { gap }, entry: Entry::InTraffic, lane }).collect()
+    };
+    let beside = |gaps: &[f64]| -> Vec<Slot> {
+        both.iter()
+            .flat_map(|&d| follow(d, gaps, if d > 0.0 { "the lane to the left" } else { "the lane to the right" }))
+            .collect()
+    };
+    match b {
+        Behavior::SuddenBraking | Behavior::LeadSwerve => {
+            let gaps: Vec<f64> = [1.2, 1.6, 2.2, 3.0].iter().map(|h| (h * v).clamp(10.0, 60.0)).collect();
+            follow(0.0, &gaps, "the ego's lane")
+        }
+        Behavior::SuddenCutIn => beside(&[8.0, 12.0, 17.0, 24.0]),
+        Behavior::RearTailgating => {
+            let gaps: Vec<f64> = [1.2, 1.8, 2.5].iter().map(|h| -(h * v).clamp(10.0, 50.0)).collect();
+            follow(0.0, &gaps, "the ego's lane")
+        }
+        Behavior::SidePass => beside(&[-10.0, -15.0, -22.0]),
+        Behavior::BlindSpotAppearance => beside(&[-7.0, -10.0, -14.0]),
+        Behavior::SuddenStart => [22.0, 28.0, 35.0, 45.0]
+            .iter()
+            .map(|&gap| Slot {
+                d: -side * KERB_OFFSET_M,
+                motion: Motion::Parked { gap },
+                entry: Entry::Parked,
+                lane: "the kerb",
+            })
+            .collect(),
+        Behavior::OpposingDrift => {
+            let speed = world.ego_now.speed().max(MIN_ONCOMING_SPEED);
+            [3.0, 4.0, 5.5]
+                .iter()
+                .map(|&h| Slot {
+                    d: side * LANE_WIDTH,
+                    motion: Motion::Oncoming { gap: h * (v + speed), speed },
+                    entry: Entry::FromAfar,
+                    lane: "the oncoming lane",
+                })
+                .collect()
+        }
+        Behavior::StepOut => Vec::new(),
+    }
+}
+
+/// The inserted car's pose at each frame (Frenet `s`, heading) from its slot.
+fn poses(world: &World, path: &LanePath, ego_s: &[f64], slot: &Slot, height: f64) -> Vec<InsertedPose> {
+    let k0 = world.scene.frames.partition_point(|f| f.timestamp_s < world.t0 - 1e-9).min(ego_s.len() - 1);
+    let s0 = path.frenet(world.ego_now.p).x;
+    world
+        .scene
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let (s, reverse) = match slot.motion {
+                Motion::Follow { gap } => (ego_s[k] + gap, false),
+                Motion::Oncoming { gap, speed } => (s0 + gap - speed * (f.timestamp_s - world.t0), true),
+                Motion::Parked { gap } => (ego_s[k0].max(s0) + gap, false),
+            };
+            let p = path.world(s, slot.d);
+            let t = path.tangent(s);
+            let heading = if reverse { (-t).to_angle() } else { t.to_angle() };
+            let z = f.world_from_ego.translation().z + 0.5 * height;
+            InsertedPose { t: f.timestamp_s, x: p.x, y: p.y, z, heading }
+        })
+        .collect()
+}
+
+/// Every admissible placement for the options' behaviour, in the order tried: each on a lane
+/// that exists there, clear of every logged road user and the ego up to t0. Empty when the ego
+/// hardly moves, or nothing fits.
+pub fn placements(scene: &Scene, o: &ReasonOptions) -> Vec<Placement> {
+    let Some(b) = o.behavior else { return Vec::new() };
+    let Some(world) = crate::world::World::new(scene, o.t0, o.radius) else { return Vec::new() };
+    let Some((path, ego_s)) = ego_path(&world) else { return Vec::new() };
+    let size = o.insert_size_lwh.unwrap_or(DEFAULT_CAR_LWH);
+    let id = (0..).map(|k| format!("{INSERTED_PREFIX}{k}")).find(|id| scene.tracks.iter().all(|t| &t.id != id));
+    let Some(id) = id else { return Vec::new() };
+    let seen = traffic(&world, &path);
+    let left_oncoming = oncoming_side(&world, &path, &seen).unwrap_or(true);
+    let mut out = Vec::new();
+    for slot in slots(&world, b, left_oncoming) {
+        let poses = poses(&world, &path, &ego_s, &slot, size[2]);
+        let reverse = matches!(slot.motion, Motion::Oncoming { .. });
+        let parked = matches!(slot.motion, Motion::Parked { .. });
+        let support = lane_supported(&world, &path, &seen, &poses, slot.d, reverse, parked);
+        let Support::Yes(how) = support else { continue };
+        if first_overlap(&world, &poses, size, CLEARANCE_M).is_some() {
+            continue;
+        }
+        let lane = format!("{} ({how})", slot.lane);
+        let inserted = Inserted { class: ObjectClass::Vehicle, size_lwh: size, entry: slot.entry, lane, poses };
+        let mut s = scene.clone();
+        s.tracks.push(track_of(&id, &inserted));
+        out.push(Placement { id: id.clone(), inserted, scene: s });
+    }
+    out
+}
+
+/// The track an inserted road user adds to its scene (a state at every frame).
+fn track_of(id: &str, ins: &Inserted) -> Track {
+    let states = ins
+        .poses
+        .iter()
+        .enumerate()
+        .map(|(k, p)| TrackState {
+            frame: k,
+            center: scene::glam::DVec3::new(p.x, p.y, p.z),
+            heading: p.heading,
+            size_lwh: ins.size_lwh,
+            velocity: None,
+            valid: true,
+            motion: None,
+        })
+        .collect();
+    Track { id: id.into(), class: ins.class, states }
+}
+
+/// The planner on each placement in turn: the first plan, marked inserted; `NoFeasible` with
+/// the reasons when no placement fits or none can be planned.
+pub fn plan_inserted(scene: &Scene, o: &ReasonOptions) -> Outcome {
+    let all = placements(scene, o);
+    if all.is_empty() {
+        return Outcome::NoFeasible { reason: "no inserted vehicle fits: no lane with room for one".into() };
+    }
+    let mut why = Vec::new();
+    for p in &all {
+        let o2 = ReasonOptions { adversary: Some(p.id.clone()), ..o.clone() };
+        let Some(world) = World::for_options(&p.scene, &o2) else { continue };
+        match agents::run_planner(&world, &o2) {
+            Outcome::Plan { mut plan, stats } => {
+                plan.inserted = Some(p.inserted.clone());
+                plan.agent = format!("{} (inserted)", plan.agent);
+                return Outcome::Plan { plan, stats };
+            }
+            Outcome::NoFeasible { reason } => why.push(format!("{}: {reason}", p.inserted.lane)),
+            other => return other,
+        }
+    }
+    Outcome::NoFeasible { reason: format!("inserted vehicles: {}", why.join("; ")) }
+}
