@@ -29,7 +29,8 @@ fn planner_always_plans_or_says_why_not() {
                         plan.validate().unwrap();
                         assert_eq!(plan.behavior, b);
                         assert_eq!(plan.waypoints.last().map(|w| w.t), Some(plan.start_time_s + plan.ttc_s));
-                        let world = World::new(scene, o.t0, o.radius).unwrap();
+                        let with = scene::inserted::with_inserted(scene, &plan).unwrap();
+                        let world = World::new(&with, o.t0, o.radius).unwrap();
                         let adversary = world.vehicle(&plan.adversary_track).unwrap();
                         let at_rest = (adversary.now.speed() < 1.0).then_some(adversary.now.heading);
                         let k = path_curvature(&plan.waypoints, at_rest);

@@ -67,6 +67,16 @@ fn cropped(scene: &Scene, map: &Map, margin_m: f64) -> Map {
 /// Builds the network of `scene` (see the module doc of `xodr`).
 pub fn build_road_network(scene: &Scene, opts: &XodrOptions) -> Result<BuiltNetwork, ExportError> {
     check_options(opts)?;
+    // A non-finite point is named in the whole map (a crop would silently drop it).
+    for (layer, lines) in scene.map.iter().flat_map(|m| [("lanes", &m.lanes), ("road_edges", &m.road_edges)]) {
+        for (i, line) in lines.iter().enumerate() {
+            if let Some((k, p)) = line.points.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+                let what = format!("map.{layer}[{i}] (id {}) point {k}", line.id);
+                let value = [p.x, p.y, p.z].into_iter().find(|v| !v.is_finite()).unwrap_or(f64::NAN);
+                return Err(ExportError::NotFinite { what, value });
+            }
+        }
+    }
     let map = scene.map.as_ref().map(|m| cropped(scene, m, opts.map_margin_m)).unwrap_or_default();
     super::budget::check_map(&map, opts.origin)?;
     let mut roads = Vec::new();
