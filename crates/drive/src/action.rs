@@ -79,7 +79,11 @@ pub fn validate(action: &Action, tick: usize, t: f64, dt: f64, ego: (f64, f64)) 
         }
         Action::Trajectory(points) => {
             if points.is_empty() || points.len() > MAX_POINTS {
-                return Err(out_of_range(tick, "trajectory", format!("needs 1 to {MAX_POINTS} points, got {}", points.len())));
+                return Err(out_of_range(
+                    tick,
+                    "trajectory",
+                    format!("needs 1 to {MAX_POINTS} points, got {}", points.len()),
+                ));
             }
             for (i, p) in points.iter().enumerate() {
                 let field = |f: &str| format!("trajectory[{i}].{f}");
@@ -92,25 +96,45 @@ pub fn validate(action: &Action, tick: usize, t: f64, dt: f64, ego: (f64, f64)) 
                     return Err(out_of_range(
                         tick,
                         field("t"),
-                        format!("must be after the tick's time {t:.3} s and within 1 s of it (scene clock), got {:.3}", p.t),
+                        format!(
+                            "must be after the tick's time {t:.3} s and within 1 s of it (scene clock), got {:.3}",
+                            p.t
+                        ),
                     ));
                 }
                 if p.t > t + MAX_TRAJECTORY_S {
-                    return Err(out_of_range(tick, field("t"), format!("reaches more than {MAX_TRAJECTORY_S} s ahead")));
+                    return Err(out_of_range(
+                        tick,
+                        field("t"),
+                        format!("reaches more than {MAX_TRAJECTORY_S} s ahead"),
+                    ));
                 }
                 let reach = (p.x - ego.0).hypot(p.y - ego.1);
                 if reach > MAX_REACH_M {
-                    return Err(out_of_range(tick, field("x"), format!("is {reach:.1} m from the ego, more than {MAX_REACH_M} m")));
+                    return Err(out_of_range(
+                        tick,
+                        field("x"),
+                        format!("is {reach:.1} m from the ego, more than {MAX_REACH_M} m"),
+                    ));
                 }
-                let (pt, px, py) = if i == 0 { (t, ego.0, ego.1) } else { (points[i - 1].t, points[i - 1].x, points[i - 1].y) };
+                let (pt, px, py) =
+                    if i == 0 { (t, ego.0, ego.1) } else { (points[i - 1].t, points[i - 1].x, points[i - 1].y) };
                 if i > 0 && p.t < pt + 1e-3 {
-                    return Err(out_of_range(tick, field("t"), "times must increase by at least 1 ms a point".to_string()));
+                    return Err(out_of_range(
+                        tick,
+                        field("t"),
+                        "times must increase by at least 1 ms a point".to_string(),
+                    ));
                 }
                 let span = p.t - pt;
                 if span > 1e-3 {
                     let speed = (p.x - px).hypot(p.y - py) / span;
                     if speed > MAX_SPEED {
-                        return Err(out_of_range(tick, field("x"), format!("implies {speed:.1} m/s, more than {MAX_SPEED} m/s")));
+                        return Err(out_of_range(
+                            tick,
+                            field("x"),
+                            format!("implies {speed:.1} m/s, more than {MAX_SPEED} m/s"),
+                        ));
                     }
                 }
             }
@@ -137,7 +161,8 @@ mod tests {
         assert!(validate(&ok, 0, 0.0, 0.1, (0.0, 0.0)).is_ok());
         let bad = Action::Control(ControlMsg { steer: 0.0, throttle: f64::NAN, brake: 0.0 });
         assert!(validate(&bad, 3, 0.0, 0.1, (0.0, 0.0)).unwrap_err().to_string().contains("control.throttle"));
-        let traj = |pts: &[(f64, f64)]| Action::Trajectory(pts.iter().map(|&(t, x)| Waypoint { t, x, y: 0.0 }).collect());
+        let traj =
+            |pts: &[(f64, f64)]| Action::Trajectory(pts.iter().map(|&(t, x)| Waypoint { t, x, y: 0.0 }).collect());
         assert!(validate(&traj(&[(0.1, 1.0), (0.5, 5.0)]), 0, 0.0, 0.1, (0.0, 0.0)).is_ok());
         // Too fast, backwards in time, too short, too far.
         assert!(validate(&traj(&[(0.1, 100.0)]), 0, 0.0, 0.1, (0.0, 0.0)).is_err());

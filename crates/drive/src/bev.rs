@@ -68,7 +68,14 @@ impl Bev {
     }
 
     /// The panel: the route, the objects, the logged ego and the ego.
-    pub fn draw(&self, route: &[[f64; 2]], objects: &[Object], adversary: &str, logged: Pose2, ego_lw: [f64; 2]) -> Canvas {
+    pub fn draw(
+        &self,
+        route: &[[f64; 2]],
+        objects: &[Object],
+        adversary: &str,
+        logged: Pose2,
+        ego_lw: [f64; 2],
+    ) -> Canvas {
         let mut c = Canvas::new(self.size, self.size, [24, 24, 28]);
         for w in route.windows(2) {
             let (a, b) = (DVec2::from(w[0]), DVec2::from(w[1]));

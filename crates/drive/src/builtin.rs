@@ -2,9 +2,11 @@
 //! * `log`: the open-loop replay of today (the ego on its logged pose, no dynamics): the driver
 //!   who does not react. It is also the no-reaction run that gives NeuroNCAP's reference impact
 //!   speed.
-//! * `constant`: keeps the speed it starts with and its lane (the route), tracked by the PID.
-//! * `idm-aeb`: the intelligent driver model (Treiber, Hennecke and Helbing 2000) behind the
-//!   nearest object in its lane, with automatic emergency braking when a box contact is
+//! * `constant`: keeps a constant speed along its lane (the route), tracked by the PID: the
+//!   speed it starts with, or the log's mean speed over the episode where that is higher (an
+//!   ego that starts from rest in the log would otherwise stay parked).
+//! * `idm-aeb`: the intelligent driver model (Treiber, Hennecke and Helbing 2000; desired
+//!   speed: the log's highest over the episode) behind the nearest object in its lane, with automatic emergency braking when a box contact is
 //!   predicted sooner than it could stop, both on the **ground-truth** objects: a
 //!   perfect-perception baseline, not a perception stack.
 //!
@@ -79,6 +81,8 @@ impl Policy for Log {
 #[derive(Default)]
 pub struct Constant {
     route: Option<Route>,
+    /// The log's mean speed over the episode (m/s).
+    logged_mean: f64,
     speed: Option<f64>,
 }
 
@@ -91,11 +95,12 @@ impl Policy for Constant {
     }
     fn start(&mut self, info: &EpisodeInfo) -> Result<Ready, DriveError> {
         self.route = Some(route_of(info));
+        self.logged_mean = info.logged_speed_mean;
         Ok(Ready { name: self.name(), ground_truth: false })
     }
     fn act(&mut self, obs: &Observation) -> Result<Action, DriveError> {
         let route = self.route.as_ref().ok_or_else(|| DriveError::settings("policy constant", "not started"))?;
-        let v = *self.speed.get_or_insert(obs.ego.speed);
+        let v = *self.speed.get_or_insert(obs.ego.speed.max(self.logged_mean));
         let (s, _) = route.project(DVec2::new(obs.ego.x, obs.ego.y));
         Ok(Action::Trajectory(along_route(route, s, obs.t, v, 0.0)))
     }
@@ -166,6 +171,7 @@ impl Policy for IdmAeb {
     fn start(&mut self, info: &EpisodeInfo) -> Result<Ready, DriveError> {
         self.route = Some(route_of(info));
         self.ego_size = [info.ego_size_lwh[0], info.ego_size_lwh[1]];
+        self.desired_speed = Some(info.logged_speed_max.max(1.0));
         Ok(Ready { name: self.name(), ground_truth: true })
     }
     fn act(&mut self, obs: &Observation) -> Result<Action, DriveError> {
@@ -173,7 +179,7 @@ impl Policy for IdmAeb {
         let objects = obs.ground_truth.as_ref().map_or(&[][..], |g| &g.objects[..]);
         let e = &obs.ego;
         let v = e.speed;
-        let v0 = *self.desired_speed.get_or_insert(v.max(1.0));
+        let v0 = self.desired_speed.unwrap_or(1.0);
         let pos = DVec2::new(e.x, e.y);
         let (s_ego, _) = route.project(pos);
         let [len, wid] = self.ego_size;
@@ -197,7 +203,11 @@ impl Policy for IdmAeb {
                 lead = Some((gap, DVec2::new(o.vx, o.vy).dot(tangent)));
             }
             if (c - pos).dot(heading) > 0.0 {
-                let other = Footprint { pose: Pose2 { t: obs.t, x: o.x, y: o.y, heading: o.heading }, length: o.length, width: o.width };
+                let other = Footprint {
+                    pose: Pose2 { t: obs.t, x: o.x, y: o.y, heading: o.heading },
+                    length: o.length,
+                    width: o.width,
+                };
                 ttc = ttc.min(box_ttc(&me, heading * v, &other, DVec2::new(o.vx, o.vy)));
             }
         }

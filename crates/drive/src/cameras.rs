@@ -57,7 +57,10 @@ impl<B: Backend> Draw for Cameras<'_, B> {
         self.names
             .iter()
             .map(|n| {
-                let cam = self.scene.camera(n).ok_or_else(|| DriveError::settings("--cameras", format!("no camera `{n}`")))?;
+                let cam = self
+                    .scene
+                    .camera(n)
+                    .ok_or_else(|| DriveError::settings("--cameras", format!("no camera `{n}`")))?;
                 let sc = recon::camera::splat_camera(cam, world_from_ego, self.scale)?;
                 let d = self.painter.draw(&sc, t, Layers::All, &overrides);
                 Ok(Canvas::from_rgb_f64(d.width, d.height, &d.rgb))

@@ -96,6 +96,9 @@ pub struct Tick {
     pub policy_s: f64,
 }
 
+/// Sees every tick's pictures: `(tick, the ego's state, one picture a camera)`.
+pub type OnFrame<'f> = dyn FnMut(usize, &EgoState, &[Canvas]) -> Result<(), DriveError> + 'f;
+
 /// What the loop produced.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EpisodeRun {
@@ -133,7 +136,10 @@ pub fn span(scene: &Scene, executed: &Executed, s: &EpisodeSettings) -> Result<(
         return bad("episode", format!("{start:.2} .. {end:.2} s is shorter than one tick"));
     }
     if (end - start) / s.tick_dt_s > 100_000.0 {
-        return bad("--dt", format!("{} ticks over {:.1} s is more than 100000", (end - start) / s.tick_dt_s, end - start));
+        return bad(
+            "--dt",
+            format!("{} ticks over {:.1} s is more than 100000", (end - start) / s.tick_dt_s, end - start),
+        );
     }
     Ok((start, end))
 }
@@ -143,7 +149,9 @@ pub fn camera_infos(scene: &Scene, names: &[String], scale: f64) -> Result<Vec<C
     names
         .iter()
         .map(|n| {
-            let cam = scene.camera(n).ok_or_else(|| DriveError::settings("--cameras", format!("the scene has no camera `{n}`")))?;
+            let cam = scene
+                .camera(n)
+                .ok_or_else(|| DriveError::settings("--cameras", format!("the scene has no camera `{n}`")))?;
             let sc = recon::camera::splat_camera(cam, &Transform3::IDENTITY, scale)?;
             Ok(CameraInfo {
                 name: n.clone(),
@@ -194,11 +202,7 @@ pub struct Loop<'a> {
 
 impl Loop<'_> {
     /// Runs the episode with `policy`; `on_frame(tick, ego, pictures)` sees every tick's pictures.
-    pub fn run(
-        &self,
-        policy: &mut dyn Policy,
-        on_frame: &mut dyn FnMut(usize, &EgoState, &[Canvas]) -> Result<(), DriveError>,
-    ) -> Result<EpisodeRun, DriveError> {
+    pub fn run(&self, policy: &mut dyn Policy, on_frame: &mut OnFrame) -> Result<EpisodeRun, DriveError> {
         let result = self.run_inner(policy, on_frame);
         policy.finish(match &result {
             Ok(r) if r.contact.is_some() => "collision",
@@ -208,17 +212,14 @@ impl Loop<'_> {
         result
     }
 
-    fn run_inner(
-        &self,
-        policy: &mut dyn Policy,
-        on_frame: &mut dyn FnMut(usize, &EgoState, &[Canvas]) -> Result<(), DriveError>,
-    ) -> Result<EpisodeRun, DriveError> {
+    fn run_inner(&self, policy: &mut dyn Policy, on_frame: &mut OnFrame) -> Result<EpisodeRun, DriveError> {
         let (scene, s) = (self.scene, self.settings);
         let (t0, t_end) = span(scene, self.executed, s)?;
         let world = World::new(scene, self.executed, t_end + 1.0)?;
         let dt = s.tick_dt_s;
         let n = ((t_end - t0) / dt + 1e-6).floor() as usize;
         let route = Route::from_log(scene, t0);
+        let speeds: Vec<f64> = (0..=n).map(|k| logged_ego(scene, t0 + k as f64 * dt).1).collect();
         let info = EpisodeInfo {
             protocol: crate::protocol::PROTOCOL.into(),
             scene: scene.name.clone(),
@@ -228,6 +229,8 @@ impl Loop<'_> {
             cameras: camera_infos(scene, &s.cameras, s.scale)?,
             ego_size_lwh: scene.ego.size_lwh,
             route: route.points().iter().map(|p| [p.x, p.y]).collect(),
+            logged_speed_mean: speeds.iter().sum::<f64>() / speeds.len() as f64,
+            logged_speed_max: speeds.iter().copied().fold(0.0, f64::max),
         };
         let images = policy.needs_images();
         if images && self.draw.is_none() {
@@ -273,7 +276,11 @@ impl Loop<'_> {
                     }
                     _ => None,
                 };
-                frames.push(CameraFrame { name: cam.name.clone(), image, world_from_camera: world_from_camera.to_row_major() });
+                frames.push(CameraFrame {
+                    name: cam.name.clone(),
+                    image,
+                    world_from_camera: world_from_camera.to_row_major(),
+                });
             }
             on_frame(k, &ego, &pictures)?;
             // Risk at this instant, against the adversary.
@@ -304,7 +311,8 @@ impl Loop<'_> {
                 ticks.push(tick);
                 break;
             }
-            let ground_truth = ready.ground_truth.then(|| GroundTruth { ground_truth: true, objects: world.objects(t) });
+            let ground_truth =
+                ready.ground_truth.then(|| GroundTruth { ground_truth: true, objects: world.objects(t) });
             tick.ground_truth_objects = ground_truth.as_ref().map(|g| g.objects.len());
             let obs = Observation { tick: k, t, dt, ego, cameras: frames, ground_truth };
             let clock = Instant::now();
@@ -350,10 +358,18 @@ impl Loop<'_> {
                             _ => Control::default(),
                         };
                         let out = plant
-                            .advance(&control, tc, period, tracker.max_physics_dt_s, &s.rollout.vehicle, &s.rollout.actuation, |ts, x| {
-                                let v = DVec2::new((x[4] + x[6]).cos(), (x[4] + x[6]).sin()) * x[3];
-                                check(Pose2 { t: ts, x: x[0], y: x[1], heading: x[4] }, v);
-                            })
+                            .advance(
+                                &control,
+                                tc,
+                                period,
+                                tracker.max_physics_dt_s,
+                                &s.rollout.vehicle,
+                                &s.rollout.actuation,
+                                |ts, x| {
+                                    let v = DVec2::new((x[4] + x[6]).cos(), (x[4] + x[6]).sin()) * x[3];
+                                    check(Pose2 { t: ts, x: x[0], y: x[1], heading: x[4] }, v);
+                                },
+                            )
                             .map_err(|e| DriveError::Diverged { t: e.t })?;
                         tc += period;
                         let x = plant.state;
@@ -376,6 +392,14 @@ impl Loop<'_> {
                 break;
             }
         }
-        Ok(EpisodeRun { info, ready, ticks, contact, rear_ended, adversary_id: world.adversary_id().to_string(), min_gap_m: min_gap })
+        Ok(EpisodeRun {
+            info,
+            ready,
+            ticks,
+            contact,
+            rear_ended,
+            adversary_id: world.adversary_id().to_string(),
+            min_gap_m: min_gap,
+        })
     }
 }

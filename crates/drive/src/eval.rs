@@ -191,11 +191,17 @@ pub fn merge(dirs: &[PathBuf]) -> Result<EvalFile, DriveError> {
         let path = d.join("drive-eval.json");
         let f: EvalFile = scene::format::read_json(&path)?;
         if f.format != EVAL_FORMAT {
-            return Err(DriveError::settings(path.display().to_string(), format!("format must be \"{EVAL_FORMAT}\", got \"{}\"", f.format)));
+            return Err(DriveError::settings(
+                path.display().to_string(),
+                format!("format must be \"{EVAL_FORMAT}\", got \"{}\"", f.format),
+            ));
         }
         for r in &f.records {
             if !seen.insert(r.index) {
-                return Err(DriveError::settings(path.display().to_string(), format!("attempt {} ({} with {}) is in two shards", r.index, r.case, r.policy)));
+                return Err(DriveError::settings(
+                    path.display().to_string(),
+                    format!("attempt {} ({} with {}) is in two shards", r.index, r.case, r.policy),
+                ));
             }
         }
         match &mut merged {
@@ -204,7 +210,10 @@ pub fn merge(dirs: &[PathBuf]) -> Result<EvalFile, DriveError> {
                 if m.scene != f.scene || m.attempts != f.attempts {
                     return Err(DriveError::settings(
                         path.display().to_string(),
-                        format!("is of scene `{}` with {} attempts, the others of `{}` with {}", f.scene, f.attempts, m.scene, m.attempts),
+                        format!(
+                            "is of scene `{}` with {} attempts, the others of `{}` with {}",
+                            f.scene, f.attempts, m.scene, m.attempts
+                        ),
                     ));
                 }
                 m.records.extend(f.records);

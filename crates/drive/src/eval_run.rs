@@ -29,13 +29,17 @@ impl PolicySpec {
         match self {
             PolicySpec::Builtin(n) => {
                 let p = crate::builtin::builtin(n).ok_or_else(|| {
-                    DriveError::settings("--policy", format!("`{n}` is not one of {}", crate::builtin::BUILTINS.join(", ")))
+                    DriveError::settings(
+                        "--policy",
+                        format!("`{n}` is not one of {}", crate::builtin::BUILTINS.join(", ")),
+                    )
                 })?;
                 Ok((p, None))
             }
             PolicySpec::Command { program, args, timeout_s, .. } => {
                 let p = crate::protocol::Subprocess::spawn(program, args, *timeout_s)?;
-                let command = std::iter::once(program.clone()).chain(args.iter().cloned()).collect::<Vec<_>>().join(" ");
+                let command =
+                    std::iter::once(program.clone()).chain(args.iter().cloned()).collect::<Vec<_>>().join(" ");
                 Ok((Box::new(p), Some(command)))
             }
         }
@@ -114,7 +118,10 @@ pub fn run_eval(req: &EvalRequest) -> Result<(EvalFile, Vec<Row>), DriveError> {
                 let s = &file.scores;
                 println!(
                     "{name}: {}, NCAP {:.2}, MinTTC {}",
-                    s.contact.as_ref().map_or("no collision".into(), |c| format!("collision with {} at {:.1} m/s", c.other, c.impact_speed)),
+                    s.contact.as_ref().map_or("no collision".into(), |c| format!(
+                        "collision with {} at {:.1} m/s",
+                        c.other, c.impact_speed
+                    )),
                     s.ncap_score,
                     s.min_ttc_s.map_or("-".into(), |v| format!("{v:.2} s"))
                 );

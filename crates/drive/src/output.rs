@@ -91,7 +91,11 @@ pub fn check_out(out: &Path, force: bool) -> Result<(), DriveError> {
 }
 
 /// The no-reaction run's contact (the `log` policy, nothing drawn).
-pub fn reference_contact(scene: &Scene, executed: &Executed, settings: &EpisodeSettings) -> Result<Option<Contact>, DriveError> {
+pub fn reference_contact(
+    scene: &Scene,
+    executed: &Executed,
+    settings: &EpisodeSettings,
+) -> Result<Option<Contact>, DriveError> {
     let lp = Loop { scene, executed, settings, draw: None, frames_dir: None };
     Ok(lp.run(&mut Log, &mut |_, _, _| Ok(()))?.contact)
 }
@@ -103,7 +107,10 @@ pub fn drive(req: &Request, policy: &mut dyn Policy) -> Result<EpisodeFile, Driv
     let (scene, executed, settings) = (req.scene, req.executed, req.settings);
     let needs_images = policy.needs_images();
     if (needs_images || req.video) && req.draw.is_none() {
-        return Err(DriveError::settings("drive", "the policy or the video needs the cameras drawn, and no model was given"));
+        return Err(DriveError::settings(
+            "drive",
+            "the policy or the video needs the cameras drawn, and no model was given",
+        ));
     }
     if settings.cameras.is_empty() && (needs_images || req.video) {
         return Err(DriveError::settings("--cameras", "no camera to draw"));
@@ -137,7 +144,13 @@ pub fn drive(req: &Request, policy: &mut dyn Policy) -> Result<EpisodeFile, Driv
             x += p.width;
         }
         let pose = scene::motion::Pose2 { t: ego.t, x: ego.x, y: ego.y, heading: ego.heading };
-        let bev = Bev::new(h, pose).draw(&route_pts, &world.objects(ego.t), world.adversary_id(), logged_ego(scene, ego.t).0, ego_lw);
+        let bev = Bev::new(h, pose).draw(
+            &route_pts,
+            &world.objects(ego.t),
+            world.adversary_id(),
+            logged_ego(scene, ego.t).0,
+            ego_lw,
+        );
         frame.blit(&bev, x, 0);
         let enc = match &mut encoder {
             Some(e) => e,
@@ -146,7 +159,13 @@ pub fn drive(req: &Request, policy: &mut dyn Policy) -> Result<EpisodeFile, Driv
         enc.push(&frame)?;
         Ok(())
     };
-    let lp = Loop { scene, executed, settings, draw: req.draw.as_ref().map(|d| d.0), frames_dir: needs_images.then_some(dir.as_path()) };
+    let lp = Loop {
+        scene,
+        executed,
+        settings,
+        draw: req.draw.as_ref().map(|d| d.0),
+        frames_dir: needs_images.then_some(dir.as_path()),
+    };
     let run = lp.run(policy, &mut on_frame)?;
     let video = match encoder {
         Some(e) => {

@@ -76,6 +76,10 @@ pub struct EpisodeInfo {
     /// The lane to keep: the logged ego path (world positions about a metre apart), extended
     /// 200 m straight past its end. It is what a navigation route would give, nothing more.
     pub route: Vec<[f64; 2]>,
+    /// The logged ego's mean and highest speed over the episode (m/s): the speed the road and
+    /// the traffic allowed, the stand-in for a speed limit.
+    pub logged_speed_mean: f64,
+    pub logged_speed_max: f64,
 }
 
 /// What a policy sees at one tick.

@@ -133,7 +133,15 @@ impl Subprocess {
             }
         });
         let stdin = child.stdin.take();
-        Ok(Subprocess { command, child, stdin, lines, stderr, timeout: Duration::from_secs_f64(timeout_s), name: String::new() })
+        Ok(Subprocess {
+            command,
+            child,
+            stdin,
+            lines,
+            stderr,
+            timeout: Duration::from_secs_f64(timeout_s),
+            name: String::new(),
+        })
     }
 
     fn stderr_tail(&self) -> String {
@@ -157,7 +165,11 @@ impl Subprocess {
             // A closed pipe means the policy is gone: say how it ended if it has.
             std::thread::sleep(Duration::from_millis(50));
             if let Ok(Some(status)) = self.child.try_wait() {
-                return Err(PolicyError::Died { tick: tick.into(), status: status.to_string(), stderr: self.stderr_tail() });
+                return Err(PolicyError::Died {
+                    tick: tick.into(),
+                    status: status.to_string(),
+                    stderr: self.stderr_tail(),
+                });
             }
             return Err(PolicyError::Pipe { tick: tick.into(), detail: e.to_string() });
         }
@@ -171,7 +183,11 @@ impl Subprocess {
             Err(RecvTimeoutError::Timeout) => {
                 let _ = self.child.kill();
                 let _ = self.child.wait();
-                Err(PolicyError::TimedOut { tick: tick.into(), timeout_s: timeout.as_secs_f64(), stderr: self.stderr_tail() })
+                Err(PolicyError::TimedOut {
+                    tick: tick.into(),
+                    timeout_s: timeout.as_secs_f64(),
+                    stderr: self.stderr_tail(),
+                })
             }
             Err(RecvTimeoutError::Disconnected) => {
                 let status = self.child.wait().map_or_else(|e| e.to_string(), |s| s.to_string());
@@ -210,7 +226,8 @@ impl Policy for Subprocess {
         self.send(tick, "hello", info)?;
         let line = self.receive(tick, self.timeout.mul_f64(START_TIMEOUT_FACTOR))?;
         let garbage = |detail: String| PolicyError::Garbage { tick: tick.into(), detail, line: excerpt(&line) };
-        let msg: ReadyMsg = serde_json::from_str(&line).map_err(|e| garbage(format!("expected {{\"type\": \"ready\", ...}}: {e}")))?;
+        let msg: ReadyMsg =
+            serde_json::from_str(&line).map_err(|e| garbage(format!("expected {{\"type\": \"ready\", ...}}: {e}")))?;
         if msg.kind != "ready" {
             return Err(garbage(format!("expected type \"ready\", got \"{}\"", msg.kind)).into());
         }

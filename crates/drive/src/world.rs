@@ -74,9 +74,9 @@ impl<'a> World<'a> {
     pub fn new(scene: &'a Scene, executed: &Executed, until: f64) -> Result<Self, DriveError> {
         let backprojection = Backprojection::new(scene, executed)?;
         let id = executed.plan.adversary_track.clone();
-        let track = scene
-            .track(&id)
-            .ok_or_else(|| DriveError::settings("executed.json", format!("adversary `{id}` is not a track of the scene")))?;
+        let track = scene.track(&id).ok_or_else(|| {
+            DriveError::settings("executed.json", format!("adversary `{id}` is not a track of the scene"))
+        })?;
         let mut path = executed.adversary_path();
         let last = *executed.steps.last().ok_or_else(|| DriveError::settings("executed.json", "has no steps"))?;
         let (vx, vy) = (last.speed * last.heading.cos(), last.speed * last.heading.sin());

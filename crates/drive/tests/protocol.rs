@@ -96,11 +96,16 @@ fn the_python_example_drives_an_episode() {
             }
         }
         // Every tick answered a control, but the last when the episode ran to its end.
-        assert!(file.ticks[..file.ticks.len() - 1].iter().all(|t| matches!(t.action, Some(drive::action::Action::Control(_)))));
+        assert!(file.ticks[..file.ticks.len() - 1]
+            .iter()
+            .all(|t| matches!(t.action, Some(drive::action::Action::Control(_)))));
         println!(
             "ground truth {gt}: {} ticks, {}, NCAP {:.2}, policy {:.4} s a tick",
             file.ticks.len(),
-            file.scores.contact.as_ref().map_or("no collision".into(), |c| format!("collision at {:.1} m/s", c.impact_speed)),
+            file.scores
+                .contact
+                .as_ref()
+                .map_or("no collision".into(), |c| format!("collision at {:.1} m/s", c.impact_speed)),
             file.scores.ncap_score,
             file.timing.policy_s_mean
         );
@@ -123,8 +128,16 @@ fn a_policy_that_hangs_or_talks_nonsense_ends_the_episode_with_nothing_written()
     let cases: [(&str, &str, &str); 5] = [
         ("hangs", "time.sleep(60)", "did not answer within 1 s at tick 0"),
         ("garbage", "print('hello there', flush=True)", "answered nonsense at tick 0"),
-        ("unknown field", "print(json.dumps({'control': {'steer': 0, 'throttle': 0, 'brake': 0, 'horn': 1}}), flush=True)", "unknown field `horn`"),
-        ("out of range", "print(json.dumps({'control': {'steer': 0, 'throttle': 3.0, 'brake': 0}}), flush=True)", "`control.throttle` must be from 0 to 1, got 3"),
+        (
+            "unknown field",
+            "print(json.dumps({'control': {'steer': 0, 'throttle': 0, 'brake': 0, 'horn': 1}}), flush=True)",
+            "unknown field `horn`",
+        ),
+        (
+            "out of range",
+            "print(json.dumps({'control': {'steer': 0, 'throttle': 3.0, 'brake': 0}}), flush=True)",
+            "`control.throttle` must be from 0 to 1, got 3",
+        ),
         ("dies", "sys.stderr.write('boom\\n'); sys.exit(3)", "the policy ended (exit status: 3) at tick 0"),
     ];
     for (what, body, expected) in cases {

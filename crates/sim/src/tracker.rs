@@ -21,8 +21,8 @@
 use crate::actuation::{ActuationParams, Control};
 use crate::model::State;
 use crate::params::VehicleParams;
-use crate::plant::Plant;
 use crate::pid::{to_carla, ControllerLimits, PidGains, VehiclePidController};
+use crate::plant::Plant;
 use crate::reference::Reference;
 use scene::glam::DVec2;
 use serde::{Deserialize, Serialize};

@@ -17,9 +17,10 @@ pub struct LoopArgs {
     /// Tick period (s of log time; 0.1 = 10 Hz).
     #[arg(long, default_value_t = 0.1)]
     dt: f64,
-    /// Seconds driven before the plan starts, and after it ends.
+    /// Seconds driven before the plan starts (within the log and the executed run).
     #[arg(long, default_value_t = 1.0)]
     lead_in: f64,
+    /// Seconds driven after the plan ends (within the log; the adversary keeps its last velocity).
     #[arg(long, default_value_t = 1.0)]
     tail: f64,
     /// Cameras drawn each tick: `front3` or names separated by commas (`FRONT`: the front camera).
@@ -129,20 +130,23 @@ fn load_case(run_dir: &Path) -> anyhow::Result<Case> {
     Ok(Case { name, run_dir: run_dir.to_path_buf(), executed })
 }
 
+/// What runs with the cameras' drawer and the rasterizer's name (`None`: nothing is drawn).
+type WithDraw<'f, T> = dyn FnMut(Option<(&dyn drive::episode::Draw, String)>) -> anyhow::Result<T> + 'f;
+
 /// Runs `f` with the cameras' drawer on the chosen device (or none without a model).
 fn with_draw<T>(
     device: Device,
     model: Option<&recon::SceneModel>,
     scene: &scene::Scene,
     s: &EpisodeSettings,
-    f: &mut dyn FnMut(Option<(&dyn drive::episode::Draw, String)>) -> anyhow::Result<T>,
+    f: &mut WithDraw<T>,
 ) -> anyhow::Result<T> {
     fn go<B: Backend, T>(
         b: &B,
         model: &recon::SceneModel,
         scene: &scene::Scene,
         s: &EpisodeSettings,
-        f: &mut dyn FnMut(Option<(&dyn drive::episode::Draw, String)>) -> anyhow::Result<T>,
+        f: &mut WithDraw<T>,
     ) -> anyhow::Result<T> {
         let cams = drive::cameras::Cameras::new(b, model, scene, &s.cameras, s.scale)?;
         f(Some((&cams, b.name().to_string())))
@@ -182,7 +186,10 @@ pub fn run(a: DriveArgs) -> anyhow::Result<()> {
     let s = &file.scores;
     println!("wrote {} ({} ticks, ended: {})", a.out.display(), file.ticks.len(), file.ended);
     match &s.contact {
-        Some(c) => println!("collision with {} ({}) at t = {:.2} s, impact speed {:.2} m/s", c.other, c.class, c.t, c.impact_speed),
+        Some(c) => println!(
+            "collision with {} ({}) at t = {:.2} s, impact speed {:.2} m/s",
+            c.other, c.class, c.t, c.impact_speed
+        ),
         None => println!("no collision"),
     }
     let ttc = s.min_ttc_s.map_or("-".into(), |v| format!("{v:.2} s"));
@@ -202,7 +209,10 @@ pub fn run(a: DriveArgs) -> anyhow::Result<()> {
 pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
     let names: Vec<&str> = a.policies.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
     anyhow::ensure!(!names.is_empty(), "--policies: give at least one policy");
-    let specs = names.iter().map(|n| policy_spec(n, &a.command, a.common.policy_timeout)).collect::<anyhow::Result<Vec<_>>>()?;
+    let specs = names
+        .iter()
+        .map(|n| policy_spec(n, &a.command, a.common.policy_timeout))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let shard = a.shard.as_deref().map(drive::eval::parse_shard).transpose()?;
     let scene = scene::load_scene(&a.common.scene)?;
     let settings = settings(&a.common, &scene)?;

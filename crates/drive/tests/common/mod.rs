@@ -30,7 +30,8 @@ pub fn box_of_gaussians(size: [f64; 3], colour: [f64; 3]) -> Gaussians {
 }
 
 pub fn synth_scene(dir: &Path) -> Scene {
-    let cfg = synth::SynthConfig { frames: 80, cameras: 3, width: 96, height: 64, seed: 4, force: true, preview: false };
+    let cfg =
+        synth::SynthConfig { frames: 80, cameras: 3, width: 96, height: 64, seed: 4, force: true, preview: false };
     synth::synthesize(&cfg, dir, &mut |_, _| {}).expect("synthesize");
     scene::load_scene(dir).expect("load scene")
 }
