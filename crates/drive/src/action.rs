@@ -57,7 +57,7 @@ impl Action {
 }
 
 fn out_of_range(tick: usize, field: impl Into<String>, detail: impl Into<String>) -> PolicyError {
-    PolicyError::OutOfRange { tick: tick.to_string(), field: field.into(), detail: detail.into() }
+    PolicyError::OutOfRange { tick: format!("tick {tick}"), field: field.into(), detail: detail.into() }
 }
 
 fn in_range(tick: usize, field: &str, v: f64, lo: f64, hi: f64) -> Result<(), PolicyError> {

@@ -4,20 +4,20 @@
 
 use std::path::PathBuf;
 
-/// What went wrong with a policy, at which tick.
+/// What went wrong with a policy, and when (`tick 12`, or `the hello` before the first tick).
 #[derive(Debug, thiserror::Error)]
 pub enum PolicyError {
     #[error("cannot start the policy `{command}`: {detail}")]
     Spawn { command: String, detail: String },
-    #[error("the policy ended ({status}) at tick {tick} without answering{stderr}")]
+    #[error("the policy ended ({status}) at {tick} without answering{stderr}")]
     Died { tick: String, status: String, stderr: String },
-    #[error("the policy did not answer within {timeout_s} s at tick {tick} (it was stopped){stderr}")]
+    #[error("the policy did not answer within {timeout_s} s at {tick} (it was stopped){stderr}")]
     TimedOut { tick: String, timeout_s: f64, stderr: String },
-    #[error("the policy answered nonsense at tick {tick}: {detail} (line: {line})")]
+    #[error("the policy answered nonsense at {tick}: {detail} (line: {line})")]
     Garbage { tick: String, detail: String, line: String },
-    #[error("the policy's answer at tick {tick} is out of range: `{field}` {detail}")]
+    #[error("the policy's answer at {tick} is out of range: `{field}` {detail}")]
     OutOfRange { tick: String, field: String, detail: String },
-    #[error("cannot talk to the policy at tick {tick}: {detail}")]
+    #[error("cannot talk to the policy at {tick}: {detail}")]
     Pipe { tick: String, detail: String },
 }
 

@@ -227,3 +227,61 @@ pub fn merge(dirs: &[PathBuf]) -> Result<EvalFile, DriveError> {
     }
     Ok(m)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(index: usize, behavior: &str, policy: &str, collision: Option<bool>) -> Record {
+        let scores = collision.map(|c| Scores {
+            collision: c,
+            contact: None,
+            rear_ended: vec![],
+            ncap_score: if c { 1.0 } else { 5.0 },
+            reference_impact_speed: Some(8.0),
+            min_ttc_s: Some(if c { 0.0 } else { 2.0 }),
+            t_min_ttc_s: Some(1.0),
+            min_ttc_box_s: None,
+            min_gap_m: Some(1.0),
+            comfort: None,
+            max_decel: 0.0,
+            max_abs_accel_lat: 0.0,
+        });
+        let error = collision.is_none().then(|| "the policy ended".to_string());
+        Record {
+            case: format!("c{index}"),
+            behavior: behavior.into(),
+            policy: policy.into(),
+            index,
+            episode: None,
+            scores,
+            step_s: None,
+            error,
+        }
+    }
+
+    #[test]
+    fn every_attempt_is_counted_and_shards_cover_the_list_once() {
+        let recs = vec![
+            record(0, "sudden_braking", "log", Some(true)),
+            record(1, "sudden_braking", "idm-aeb", Some(false)),
+            record(2, "opposing_drift", "log", Some(true)),
+            record(3, "sudden_braking", "log", None),
+        ];
+        let rows = table(&recs);
+        assert_eq!(rows.len(), 3);
+        let log = &rows[0];
+        assert_eq!((log.behavior.as_str(), log.policy.as_str()), ("sudden_braking", "log"));
+        assert_eq!((log.episodes, log.failed, log.collisions), (2, 1, 1));
+        assert_eq!(log.collision_rate, Some(1.0));
+        assert_eq!(rows[1].ncap_mean, Some(5.0));
+        assert_eq!(rows[2].behavior, "opposing_drift");
+        let n = attempts(5, 3).len();
+        let covered: usize = (0..4).map(|i| (0..n).filter(|k| in_shard(*k, Some((i, 4)))).count()).sum();
+        assert_eq!(covered, n);
+        assert_eq!(parse_shard("1/4").unwrap(), (1, 4));
+        for bad in ["4/4", "1", "a/b", "0/0", "-1/3"] {
+            assert!(parse_shard(bad).is_err(), "{bad}");
+        }
+    }
+}

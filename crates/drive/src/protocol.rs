@@ -222,7 +222,7 @@ impl Policy for Subprocess {
     }
 
     fn start(&mut self, info: &EpisodeInfo) -> Result<Ready, DriveError> {
-        let tick = "hello";
+        let tick = "the hello";
         self.send(tick, "hello", info)?;
         let line = self.receive(tick, self.timeout.mul_f64(START_TIMEOUT_FACTOR))?;
         let garbage = |detail: String| PolicyError::Garbage { tick: tick.into(), detail, line: excerpt(&line) };
@@ -236,7 +236,7 @@ impl Policy for Subprocess {
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Action, DriveError> {
-        let tick = obs.tick.to_string();
+        let tick = format!("tick {}", obs.tick);
         self.send(&tick, "tick", obs)?;
         let line = self.receive(&tick, self.timeout)?;
         let garbage = |detail: String| PolicyError::Garbage { tick: tick.clone(), detail, line: excerpt(&line) };
