@@ -1,10 +1,12 @@
 //! The ego's cameras drawn from the trained model at any ego pose and time, through the same
 //! drawing path as the corner-case videos (`recon::painter`: the model kept on the GPU when the
 //! backend has one, the host's composition reused between views on the CPU), with the adversary
-//! at the pose the world gives it and every other actor as logged.
+//! at the pose the world gives it and every other actor as logged; the cameras' calibration as a
+//! policy is told it; and which cameras `--cameras` names.
 
 use crate::episode::Draw;
 use crate::error::DriveError;
+use crate::policy::CameraInfo;
 use recon::backend::Backend;
 use recon::compose::Layers;
 use recon::painter::Painter;
@@ -105,4 +107,27 @@ pub fn resolve(scene: &Scene, spec: &str) -> Result<Vec<String>, DriveError> {
         return Err(DriveError::settings("--cameras", format!("needs 1 to 16 cameras, got `{spec}`")));
     }
     Ok(names)
+}
+
+/// The calibration of `names` at `scale` (OpenCV axes).
+pub fn camera_infos(scene: &Scene, names: &[String], scale: f64) -> Result<Vec<CameraInfo>, DriveError> {
+    names
+        .iter()
+        .map(|n| {
+            let cam = scene
+                .camera(n)
+                .ok_or_else(|| DriveError::settings("--cameras", format!("the scene has no camera `{n}`")))?;
+            let sc = recon::camera::splat_camera(cam, &Transform3::IDENTITY, scale)?;
+            Ok(CameraInfo {
+                name: n.clone(),
+                width: sc.width,
+                height: sc.height,
+                fx: sc.fx,
+                fy: sc.fy,
+                cx: sc.cx,
+                cy: sc.cy,
+                ego_from_camera: cam.cv_from_ego().inverse().to_row_major(),
+            })
+        })
+        .collect()
 }

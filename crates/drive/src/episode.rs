@@ -14,7 +14,7 @@
 
 use crate::action::{validate, Action};
 use crate::error::DriveError;
-use crate::policy::{CameraFrame, CameraInfo, EgoState, EpisodeInfo, GroundTruth, Observation, Policy, Ready};
+use crate::policy::{CameraFrame, EgoState, EpisodeInfo, GroundTruth, Observation, Policy, Ready};
 use crate::route::Route;
 use crate::world::{logged_ego, Contact, Touch, World};
 use recon::pose::BoxPose;
@@ -144,29 +144,6 @@ pub fn span(scene: &Scene, executed: &Executed, s: &EpisodeSettings) -> Result<(
     Ok((start, end))
 }
 
-/// The calibration of `names` at `scale` (OpenCV axes).
-pub fn camera_infos(scene: &Scene, names: &[String], scale: f64) -> Result<Vec<CameraInfo>, DriveError> {
-    names
-        .iter()
-        .map(|n| {
-            let cam = scene
-                .camera(n)
-                .ok_or_else(|| DriveError::settings("--cameras", format!("the scene has no camera `{n}`")))?;
-            let sc = recon::camera::splat_camera(cam, &Transform3::IDENTITY, scale)?;
-            Ok(CameraInfo {
-                name: n.clone(),
-                width: sc.width,
-                height: sc.height,
-                fx: sc.fx,
-                fy: sc.fy,
-                cx: sc.cx,
-                cy: sc.cy,
-                ego_from_camera: cam.cv_from_ego().inverse().to_row_major(),
-            })
-        })
-        .collect()
-}
-
 /// The ego's cameras' carrier at the simulated state (module notes).
 pub fn world_from_ego(scene: &Scene, ego: &EgoState) -> Transform3 {
     let log = scene.world_from_ego_at(ego.t);
@@ -226,7 +203,7 @@ impl Loop<'_> {
             t_start: t0,
             t_end: t0 + n as f64 * dt,
             dt,
-            cameras: camera_infos(scene, &s.cameras, s.scale)?,
+            cameras: crate::cameras::camera_infos(scene, &s.cameras, s.scale)?,
             ego_size_lwh: scene.ego.size_lwh,
             route: route.points().iter().map(|p| [p.x, p.y]).collect(),
             logged_speed_mean: speeds.iter().sum::<f64>() / speeds.len() as f64,
