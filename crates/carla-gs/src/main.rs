@@ -60,6 +60,12 @@ enum Command {
     Run(cmd::run::RunArgs),
     /// Everything on embedded defaults: synthesise, train, one case per showcased behaviour, videos, report.
     Demo(cmd::demo::Args),
+    /// Closed loop: drive a policy through a corner case (cameras at the simulated pose, NCAP score).
+    Drive(cmd::drive::DriveArgs),
+    /// Drive many cases with many policies; the table per behaviour and policy (shards with --shard).
+    EvalDrive(cmd::drive::EvalArgs),
+    /// Merge `eval-drive --shard I/N` outputs into the table of one run.
+    DriveTables(cmd::drive::TablesArgs),
     /// Render an executed corner case as video (one layout).
     Video(cmd::run::VideoCmdArgs),
     /// Add a Gaussian asset (a 3DGS PLY, a trained actor, a synthetic vehicle) to an asset library.
@@ -102,6 +108,9 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd::run::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Video(a) => cmd::run::video(a),
+        Command::Drive(a) => cmd::drive::run(a),
+        Command::EvalDrive(a) => cmd::drive::eval(a),
+        Command::DriveTables(a) => cmd::drive::tables(a),
         Command::Asset(a) => cmd::asset::add(a),
         Command::Replace(a) => cmd::asset::replace(a),
     };

@@ -19,9 +19,10 @@
 //! ([`crate::model::at_friction_limit`]): the time spent there is a validity criterion.
 
 use crate::actuation::{ActuationParams, Control};
-use crate::model::{at_friction_limit, derivative, rk4_step, stable_step, State};
+use crate::model::State;
 use crate::params::VehicleParams;
 use crate::pid::{to_carla, ControllerLimits, PidGains, VehiclePidController};
+use crate::plant::Plant;
 use crate::reference::Reference;
 use scene::glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -167,11 +168,10 @@ impl Tracker<'_> {
             )));
         }
         let mut law = ControlLaw::new(c);
-        let mut x = initial;
-        let mut pedal = 0.0; // applied throttle - brake, lagging the command
+        let mut plant = Plant::new(initial);
         let mut records = vec![StepRecord {
             t: t_start,
-            state: x,
+            state: plant.state,
             control: Control::default(),
             accel_long: 0.0,
             accel_lat: 0.0,
@@ -182,42 +182,19 @@ impl Tracker<'_> {
         for k in 0..n {
             let t = t_start + k as f64 * c.control_dt_s;
             let period = c.control_dt_s.min(t_end - t);
+            let x = plant.state;
             let control = law.command(reference, t, DVec2::new(x[0], x[1]), x[4], x[3].abs());
-
-            let mut elapsed = 0.0;
-            let mut accel = 0.0;
-            let mut u = [0.0, 0.0];
-            let mut at_limit = 0.0;
-            while elapsed < period - 1e-12 {
-                let h_try = (period - elapsed).min(c.max_physics_dt_s);
-                let applied = ActuationParams::applied(self.actuation.lag_pedal(pedal, &control, h_try), &control);
-                let a_try = self.actuation.longitudinal_accel(&applied, x[3], self.vehicle, h_try);
-                let h = stable_step(x[3], a_try, self.vehicle, c.max_physics_dt_s).min(period - elapsed);
-                pedal = self.actuation.lag_pedal(pedal, &control, h);
-                let applied = ActuationParams::applied(pedal, &control);
-                accel = self.actuation.longitudinal_accel(&applied, x[3], self.vehicle, h);
-                let delta_target = self.actuation.steering_target(&control, x[3], self.vehicle);
-                let rate = ((delta_target - x[2]) / h).clamp(self.vehicle.steering.v_min, self.vehicle.steering.v_max);
-                u = [rate, accel];
-                x = rk4_step(&x, u, self.vehicle, h);
-                elapsed += h;
-                if at_friction_limit(&x, u, self.vehicle) {
-                    at_limit += h;
-                }
-                if x.iter().any(|v| !v.is_finite()) {
-                    return Err(TrackError::Diverged { t: t + elapsed });
-                }
-                on_substep(t + elapsed, &x);
-            }
-            let d = derivative(&x, u, self.vehicle);
+            let outcome = plant
+                .advance(&control, t, period, c.max_physics_dt_s, self.vehicle, self.actuation, &mut on_substep)
+                .map_err(|e| TrackError::Diverged { t: e.t })?;
             records.push(StepRecord {
                 t: t + period,
-                state: x,
+                state: plant.state,
                 control,
-                accel_long: accel,
-                accel_lat: x[3] * (d[4] + d[6]),
+                accel_long: outcome.accel_long,
+                accel_lat: outcome.accel_lat,
                 reference: reference.position(t + period),
-                friction_limit_s: at_limit,
+                friction_limit_s: outcome.friction_limit_s,
             });
         }
         Ok(records)

@@ -7,6 +7,7 @@ pub mod bench_cases;
 pub mod constraints;
 pub mod demo;
 pub mod describe;
+pub mod drive;
 pub mod eval_cases;
 pub mod export_xodr;
 pub mod ingest;
