@@ -176,3 +176,66 @@ fn bench_cases_names_a_kitti_window_longer_than_the_sequence() {
     // Was "two scenes are named ...".
     refused(r, &["--kitti-window-s 1000000000000000000000000000000", "longer than KITTI sequence 00"]);
 }
+
+#[test]
+fn reason_refuses_a_dt_simulate_would_refuse() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = synth(tmp.path(), "s", "60");
+    let out = tmp.path().join("plan.json");
+    for dt in ["3", "10", "1e30", "0"] {
+        // 3 and 10 wrote plans `simulate` refused; 1e30 was a panic.
+        let r = run(&["reason", s(&scene), "--t0", "1", "--behavior", "sudden_braking", "--dt", dt, "--out", s(&out)]);
+        refused(r, &["--dt ", "expected a waypoint spacing from 0.01 to 1 s"]);
+        assert!(!out.exists());
+    }
+}
+
+/// An ASCII 3DGS PLY of three Gaussians, the middle one's values replaced by `middle`.
+fn asset_ply(path: &Path, middle: &str) {
+    let props = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2"];
+    let mut text = String::from("ply\nformat ascii 1.0\nelement vertex 3\n");
+    for p in props.iter().chain(&["rot_0", "rot_1", "rot_2", "rot_3"]) {
+        text += &format!("property float {p}\n");
+    }
+    text += "end_header\n0 0 0 0.5 0.5 0.5 1 -2 -2 -2 1 0 0 0\n";
+    text += &format!("{middle}\n0 1 0.5 0.5 0.5 0.5 1 -2 -2 -2 1 0 0 0\n");
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn an_absurd_asset_is_refused_and_ply_errors_name_the_file_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let lib = tmp.path().join("lib");
+    let add = |name: &str, middle: &str| {
+        let ply = tmp.path().join(name);
+        asset_ply(&ply, middle);
+        run(&["asset", "--library", s(&lib), "--ply", s(&ply)])
+    };
+    ok(add("good.ply", "1 0 0 0.5 0.5 0.5 1 -2 -2 -2 1 0 0 0"));
+    // Drawn as nothing, its case reported valid, before.
+    refused(
+        add("huge.ply", "1 0 0 0.5 0.5 0.5 1 87 -2 -2 1 0 0 0"),
+        &["huge.ply: vertex 1: property `scale_0`: log-scale 87"],
+    );
+    refused(add("flat.ply", "1 0 0 0.5 0.5 0.5 1 -2 -2 -2 0 0 0 0"), &["flat.ply: vertex 1", "quaternion is zero"]);
+    let bad = tmp.path().join("bad.ply");
+    std::fs::write(&bad, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n").unwrap();
+    let r = run(&["asset", "--library", s(&lib), "--ply", s(&bad)]);
+    let err = String::from_utf8_lossy(&r.stderr).into_owned();
+    refused(r, &["no `y` property"]);
+    assert_eq!(err.matches("bad.ply").count(), 1, "{err}");
+}
+
+#[test]
+fn demo_names_a_bad_scene_json_by_the_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = synth(tmp.path(), "s", "10");
+    let file = scene.join("scene.json");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replacen("\"frames\"", "\"frames_gone\"", 1)).unwrap();
+    let r = run(&["demo", "--input", s(&scene), "--out", s(&tmp.path().join("demo"))]);
+    let err = String::from_utf8_lossy(&r.stderr).into_owned();
+    refused(r, &[&format!("{}: at `.`: missing field `frames`", file.display())]);
+    // The staging folder sits in the demo's output folder.
+    assert!(!err.contains("demo/"), "{err}");
+}
