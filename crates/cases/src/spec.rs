@@ -128,7 +128,7 @@ pub fn check_t0(scenes: &[SceneMeta], behaviours: usize, t0: &T0Spec) -> Result<
         }
     };
     let total = per_scene * behaviours as f64;
-    if !(total <= MAX_ATTEMPTS as f64) {
+    if total.is_nan() || total > MAX_ATTEMPTS as f64 {
         return Err(crate::EvalError::Input(format!(
             "--t0 gives {total:.3e} attempts over {} scenes and {behaviours} behaviours; at most {MAX_ATTEMPTS} in one run (a coarser step, fewer scenes or shards of separate runs)",
             scenes.len()

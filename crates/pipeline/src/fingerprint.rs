@@ -186,7 +186,7 @@ mod tests {
         for i in 0..3 {
             std::fs::write(d.path().join(format!("{i}")), b"").unwrap();
         }
-        let e = folder_within(d.path(), 2, |_| false).unwrap_err().to_string();
+        let e = folder_within(d.path(), 2, MAX_ENTRIES, |_| false).unwrap_err().to_string();
         assert!(e.contains("more than 2 files"), "{e}");
     }
 

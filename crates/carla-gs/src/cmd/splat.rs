@@ -102,7 +102,10 @@ const MAX_BENCH_CASES: usize = 64;
 /// `--cases NxWxH,...`, each checked before anything is allocated: N up to
 /// [`splat::ply::MAX_GAUSSIANS`], W and H from 1 to [`scene::camera::MAX_CAMERA_SIDE`], W x H up to
 /// [`scene::camera::MAX_CAMERA_PIXELS`].
-fn bench_cases(list: &str) -> anyhow::Result<Vec<(String, (usize, u32, u32))>> {
+/// A `--cases` entry: its text, and N, W, H.
+type BenchCase = (String, (usize, u32, u32));
+
+fn bench_cases(list: &str) -> anyhow::Result<Vec<BenchCase>> {
     let cases: Vec<&str> = list.split(',').map(str::trim).collect();
     anyhow::ensure!(cases.len() <= MAX_BENCH_CASES, "--cases: {} cases; at most {MAX_BENCH_CASES}", cases.len());
     let (max_n, max_side, max_px) =

@@ -156,7 +156,7 @@ fn check_asset_values(path: &Path, g: &Gaussians) -> Result<(), RenderError> {
     let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
     for (i, m) in g.means.iter().enumerate() {
         for k in 0..3 {
-            if !(m[k].abs() <= max) {
+            if m[k].is_nan() || m[k].abs() > max {
                 return Err(bad(i, ["x", "y", "z"][k].into(), format!("{:e}; expected at most {max:e} in size", m[k])));
             }
             lo[k] = lo[k].min(m[k]);
@@ -168,7 +168,7 @@ fn check_asset_values(path: &Path, g: &Gaussians) -> Result<(), RenderError> {
     for (i, (s, q)) in g.log_scales.iter().zip(&g.rotations).enumerate() {
         for (k, v) in s.iter().enumerate() {
             let scale = v.exp();
-            if !(scale <= largest) {
+            if scale.is_nan() || scale > largest {
                 return Err(bad(
                     i,
                     format!("scale_{k}"),
@@ -178,7 +178,8 @@ fn check_asset_values(path: &Path, g: &Gaussians) -> Result<(), RenderError> {
                 ));
             }
         }
-        if !(q.iter().map(|c| c * c).sum::<f64>() > 1e-12) {
+        let norm2: f64 = q.iter().map(|c| c * c).sum();
+        if norm2.is_nan() || norm2 <= 1e-12 {
             return Err(bad(i, "rot_0..rot_3".into(), "the rotation quaternion is zero".into()));
         }
     }
