@@ -7,7 +7,6 @@
 #   ffmpeg                                                - MP4 (H.264) corner-case videos
 #   libxml2-utils (xmllint)                               - OpenSCENARIO schema validation test
 #   chromium                                              - the report page test (headless)
-#   fonts-dejavu-core                                     - text in the plots
 #   python3-venv                                          - the virtual environments below
 # then the default local LLM (tools/setup-model.sh), CARLA's Python client for `--backend carla`
 # (`carla==0.9.16` from PyPI in a virtual environment, $XDG_CACHE_HOME/carla-gs/carla-venv, which
@@ -35,7 +34,6 @@ need libclang-dev sh -c 'ls /usr/lib/llvm-*/lib/libclang.so* || ls /usr/lib/*/li
 need ffmpeg command -v ffmpeg
 need libxml2-utils command -v xmllint
 need chromium sh -c 'command -v chromium || command -v chromium-browser'
-need fonts-dejavu-core test -f /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf
 need python3-venv python3 -c 'import ensurepip, venv'
 
 if [ ${#missing[@]} -gt 0 ] && [ "${CARLA_GS_SKIP_APT:-0}" != 1 ]; then

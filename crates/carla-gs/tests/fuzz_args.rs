@@ -1,6 +1,6 @@
 //! Issue 28 item 6, numeric arguments (docs/fuzz.md): the binary on a small street with extreme
 //! values (0, -1, NaN, inf, 1e300, 2^63) for numeric flags of `render`, `simulate`, `reason`,
-//! `synth`, `train` and `priors`. Each run is killed after 20 s; the exit code must be 0 or 2 (3
+//! `synth`, `train`, `run`, `eval-cases` and `bench-splat`. Each run is killed after 20 s; the exit code must be 0 or 2 (3
 //! also for `reason`), never a signal, 101 (panic) or 134 (abort).
 
 use std::path::Path;
@@ -57,7 +57,11 @@ fn numeric_flags_exit_0_2_or_3() {
     let run_at: Vec<&str> = run_at.into_iter().chain(["--layouts", "compare:FRONT", "--fps", "2"]).collect();
     // (command before the flag, the flag, after, a sane value that must succeed, allowed codes)
     type Run<'a> = (Vec<&'a str>, &'a str, Vec<&'a str>, &'a str, &'a [i32]);
-    let runs: Vec<Run> = vec![
+    let (o_ev, o_bench) = (out("ev"), out("bench.json"));
+    let eval = vec!["eval-cases", s(&scene), "--agents", "planner", "--behaviors", "sudden_cut_in", "--no-plots"];
+    let eval: Vec<&str> = eval.into_iter().chain(["--out", &o_ev]).collect();
+    let bench_splat = vec!["bench-splat", "--cases", "10x8x8", "--out", &o_bench];
+    let mut runs: Vec<Run> = vec![
         (render.clone(), "--frame", vec![], "0", &[0, 2]),
         (render.clone(), "--scale", vec!["--frame", "0"], "0.5", &[0, 2]),
         (render.clone(), "--shift-m", vec!["--frame", "0"], "1", &[0, 2]),
@@ -69,6 +73,17 @@ fn numeric_flags_exit_0_2_or_3() {
         (run_at.clone(), "--horizon", vec![], "5", &[0, 2, 3]),
         (vec!["train", s(&scene), "--out", &o_m, "--force"], "--iters", vec![], "1", &[0, 2]),
     ];
+    // Issue 56: the numeric flags of the other commands.
+    runs.extend::<Vec<Run>>(vec![
+        (reason_at.clone(), "--dt", vec!["--t0", "1"], "0.1", &[0, 2, 3]),
+        (reason_at.clone(), "--radius", vec!["--t0", "1"], "60", &[0, 2, 3]),
+        (eval.clone(), "--t0", vec![], "1", &[0, 2, 3]),
+        (eval.clone(), "--seed", vec!["--t0", "1"], "1", &[0, 2, 3]),
+        (eval.clone(), "--refine-rounds", vec!["--t0", "1"], "1", &[0, 2, 3]),
+        (eval.clone(), "--horizon", vec!["--t0", "1"], "5", &[0, 2, 3]),
+        (bench_splat.clone(), "--iters", vec![], "1", &[0, 2]),
+        (run_at.clone(), "--seeds-per-t0", vec![], "1", &[0, 2, 3]),
+    ]);
     let mut n = 0;
     for (before, flag, after, sane, allowed) in &runs {
         // The command itself is right: with a sane value it succeeds (so a refusal below is the

@@ -5,8 +5,11 @@
 //! property: no panic, no single allocation past [`ALLOC_BUDGET`], and the reader returns Ok or
 //! a clean Err. `CARLA_GS_FUZZ_CASES` sets the cases per target (default 64); each target prints
 //! `fuzz <target>: <cases> cases, <ok> ok, <err> refused`. The file formats are in
-//! `fuzz_readers/files.rs`, the ingest sources in `fuzz_readers/ingest.rs`.
+//! `fuzz_readers/files.rs`, the ingest sources in `fuzz_readers/ingest.rs`, the batch manifest,
+//! plan, shard record and case file in `fuzz_readers/batch.rs`.
 
+#[path = "fuzz_readers/batch.rs"]
+mod batch;
 #[path = "fuzz_readers/files.rs"]
 mod files;
 #[path = "fuzz_readers/ingest.rs"]

@@ -5,6 +5,7 @@
 //! Markdown, CSV and JSON, per-case files and plots (`plots`). Deterministic agents run in parallel (rayon), LLM agents one case at a time;
 //! results do not depend on the thread count (every case has its own seed).
 
+pub mod case_check;
 pub mod choose;
 pub mod describe;
 pub mod llm_validity;
@@ -115,6 +116,9 @@ pub enum EvalError {
     /// The request cannot be run as given (duplicate scene names, colliding attempt ids).
     #[error("{0}")]
     Input(String),
+    /// The request is well formed but holds no attempt (the logs are too short for its t0).
+    #[error("{0}")]
+    NoAttempt(String),
 }
 
 /// Writes one case's files: plan, executed trajectory, rounds and metrics, plots.
@@ -158,6 +162,7 @@ pub fn run_eval(
 /// The whole attempt list over `universe`, `cfg.shard`'s part of it (or all), in the order one
 /// run over all attempts has them, with their positions in the whole list.
 pub fn shard_attempts(universe: &[SceneMeta], cfg: &EvalConfig) -> Result<ShardAttempts, EvalError> {
+    spec::check_t0(universe, cfg.behaviors.len(), &cfg.t0)?;
     let mut all = attempts_of(universe, &cfg.behaviors, &cfg.t0, cfg.seed);
     // A scene with a `--describe` reading is attempted with its behaviour only.
     all.retain(|a| cfg.case.requests.get(&a.scene).is_none_or(|r| r.behavior == a.behavior));

@@ -6,7 +6,10 @@
 //!
 //! Nothing is averaged over what happens to be there: a missing or duplicated shard, shards of
 //! another attempt list or run with other settings, and a missing or foreign case file are
-//! refused with the file and what was expected.
+//! refused with the file and what was expected. Each record is checked before it is compared
+//! (its shard, horizon and timings; `attempts_total` against the attempts the records hold,
+//! before anything is allocated from it), and each case file's numbers
+//! ([`crate::case_check`]) before the tables count them.
 
 use crate::runner::CaseResult;
 use crate::shard::{ShardRecord, RECORD_FORMAT, RECORD_VERSION};
@@ -18,6 +21,8 @@ use std::path::{Path, PathBuf};
 pub const MAX_RECORD_BYTES: u64 = 256 << 20;
 /// A case file larger than this is not one (a case with refinement rounds is a few kB).
 pub const MAX_CASE_BYTES: u64 = 64 << 20;
+/// A shard's wall time past this (about 30 years) is not a measurement.
+const MAX_WALL_S: f64 = 1e9;
 /// Records read at most: [`crate::shard::MAX_SHARDS`].
 const MAX_RECORDS: usize = crate::shard::MAX_SHARDS;
 
@@ -105,12 +110,26 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Report, MergeError> {
                 format!("format {} v{}; expected {RECORD_FORMAT} v{RECORD_VERSION}", r.format, r.version),
             ));
         }
+        check_record(&f, &r)?;
         records.push((f, r));
     }
     check_one_run(&records)?;
     let (first_file, first) = &records[0];
     let total = first.attempts_total;
     let settings = first.settings.clone();
+    // Every attempt is in exactly one record: the records' attempts bound the list's length
+    // before anything is allocated from `attempts_total`.
+    let held: usize = records.iter().map(|(_, r)| r.attempts.len()).sum();
+    if held != total {
+        return Err(invalid(
+            first_file,
+            format!(
+                "attempts_total: {total}, but the {} records hold {held} attempts: {}",
+                records.len(),
+                if held < total { "the records are incomplete" } else { "an attempt is in two records" }
+            ),
+        ));
+    }
     // Each attempt's place in the whole list, and the record (dir) that ran it.
     let mut slots: Vec<Option<(usize, &crate::shard::RecordedAttempt)>> = vec![None; total];
     for (k, (file, r)) in records.iter().enumerate() {
@@ -138,6 +157,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Report, MergeError> {
                 return Err(MergeError::CaseMissing { path, case: id, record: file.clone() });
             }
             let c: CaseResult = read_bounded(&path, MAX_CASE_BYTES)?;
+            crate::case_check::check(&c).map_err(|m| invalid(&path, m))?;
             if c.spec.id() != id || c.spec.agent != *agent || c.spec.seed != a.seed {
                 return Err(invalid(
                     &path,
@@ -157,6 +177,41 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Report, MergeError> {
     Ok(report::build(first.scenes.clone(), &settings, total, cases, timing, plot_errors))
 }
 
+/// What one record must hold before it is compared with the others: a shard `I/N` with
+/// `0 <= I < N <=` [`crate::shard::MAX_SHARDS`], a horizon of positive seconds, and timings of
+/// at most its own attempts over a wall time of at most [`MAX_WALL_S`].
+fn check_record(file: &Path, r: &ShardRecord) -> Result<(), MergeError> {
+    let crate::shard::Shard { index, count } = r.shard;
+    if count == 0 || count > crate::shard::MAX_SHARDS || index >= count {
+        return Err(invalid(
+            file,
+            format!("shard: {index}/{count}; expected I/N with 0 <= I < N <= {}", crate::shard::MAX_SHARDS),
+        ));
+    }
+    if let crate::window::Horizon::Seconds(h) = r.settings.window.horizon {
+        if !(h > 0.0 && h.is_finite()) {
+            return Err(invalid(
+                file,
+                format!("settings.window.horizon: {h} s; expected a positive number of seconds"),
+            ));
+        }
+    }
+    for (i, t) in r.timing.iter().enumerate() {
+        if t.cases > r.attempts.len() || !(0.0..=MAX_WALL_S).contains(&t.wall_s) {
+            return Err(invalid(
+                file,
+                format!(
+                    "timing[{i}]: {} cases in {} s; expected at most the record's {} attempts in 0 to {MAX_WALL_S:e} s",
+                    t.cases,
+                    t.wall_s,
+                    r.attempts.len()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The records are the shards of one run: same settings, shard count and attempt list, each
 /// shard once, none missing.
 fn check_one_run(records: &[(PathBuf, ShardRecord)]) -> Result<(), MergeError> {
@@ -168,11 +223,13 @@ fn check_one_run(records: &[(PathBuf, ShardRecord)]) -> Result<(), MergeError> {
         }
         if r.attempts_digest != r0.attempts_digest || r.attempts_total != r0.attempts_total || r.scenes != r0.scenes {
             fields.push(format!(
-                "attempt list ({} attempts over {} vs {} over {})",
+                "attempt list ({} attempts over {}, digest {} vs {} over {}, digest {})",
                 r0.attempts_total,
                 r0.scenes.join(","),
+                r0.attempts_digest,
                 r.attempts_total,
-                r.scenes.join(",")
+                r.scenes.join(","),
+                r.attempts_digest
             ));
         }
         if !fields.is_empty() {

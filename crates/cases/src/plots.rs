@@ -1,7 +1,9 @@
 //! PNG plots with plotters: per case a bird's-eye view (lanes, ego and adversary logged paths,
 //! reference waypoints, executed path, target zone, collision target, both boxes at the MinTTC
 //! instant) and a PID tracking plot (reference vs executed x and y over time, like the paper's
-//! Fig. 5); per run a bar chart of Table I. Text uses a TTF found on the system (DejaVu Sans).
+//! Fig. 5); per run a bar chart of Table I. Text uses DejaVu Sans, embedded in the binary
+//! (`assets/DejaVuSans.ttf`, licence beside it), so plots never depend on the machine's fonts;
+//! `CARLA_GS_FONT` names another TTF to use instead.
 
 use crate::tables::Table1Row;
 use metrics::CaseMetrics;
@@ -13,29 +15,36 @@ use scene::{Executed, Plan, Scene};
 use std::path::Path;
 use std::sync::OnceLock;
 
-const FONT_PATHS: [&str; 4] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/Library/Fonts/Arial.ttf",
-];
+/// DejaVu Sans 2.37 (Bitstream Vera licence, `assets/LICENSE-DejaVuSans.txt`).
+pub const EMBEDDED_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
-/// Registers the plot font once; the error says what to install.
-pub fn ensure_font() -> Result<(), String> {
-    static FONT: OnceLock<Result<(), String>> = OnceLock::new();
-    FONT.get_or_init(|| {
-        let path = std::env::var("CARLA_GS_FONT")
-            .ok()
-            .into_iter()
-            .chain(FONT_PATHS.iter().map(|s| s.to_string()))
-            .find(|p| Path::new(p).is_file());
-        let Some(path) = path else {
-            return Err("no TTF font for plots (install fonts-dejavu-core or set CARLA_GS_FONT)".into());
-        };
-        let bytes: &'static [u8] =
-            Box::leak(std::fs::read(&path).map_err(|e| format!("{path}: {e}"))?.into_boxed_slice());
-        plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
-            .map_err(|_| format!("{path}: not a usable TTF font"))
+/// Where the plots' font came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FontOrigin {
+    /// The font compiled into the binary.
+    Embedded,
+    /// The file `CARLA_GS_FONT` named.
+    File(std::path::PathBuf),
+}
+
+/// Registers the plot font once: the file `CARLA_GS_FONT` names, else the embedded DejaVu Sans.
+/// The only error is a `CARLA_GS_FONT` that cannot be read or is not a TTF; no system font is
+/// looked up.
+pub fn ensure_font() -> Result<FontOrigin, String> {
+    static FONT: OnceLock<Result<FontOrigin, String>> = OnceLock::new();
+    FONT.get_or_init(|| match std::env::var_os("CARLA_GS_FONT").filter(|p| !p.is_empty()) {
+        None => plotters::style::register_font("sans-serif", FontStyle::Normal, EMBEDDED_FONT)
+            .map(|()| FontOrigin::Embedded)
+            .map_err(|_| "the embedded font is not a usable TTF".to_string()),
+        Some(path) => {
+            let path = std::path::PathBuf::from(path);
+            let shown = path.display().to_string();
+            let bytes = std::fs::read(&path).map_err(|e| format!("CARLA_GS_FONT {shown}: {e}"))?;
+            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+            plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+                .map(|()| FontOrigin::File(path))
+                .map_err(|_| format!("CARLA_GS_FONT {shown}: not a usable TTF font"))
+        }
     })
     .clone()
 }

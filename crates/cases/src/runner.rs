@@ -30,9 +30,14 @@ use std::collections::BTreeMap;
 /// The physics stage as a function (tests substitute a failing one).
 pub type SimulateFn = dyn Fn(&Scene, &Plan, &RolloutConfig) -> Result<Executed, SimError> + Sync + Send;
 
+/// Refinement rounds a case runs at most (`--refine-rounds`): a budget on time; refinement
+/// settles within a few rounds.
+pub const MAX_REFINE_ROUNDS: usize = 100;
+
 pub struct CaseConfig {
     pub reason: ReasonOptions,
     pub rollout: RolloutConfig,
+    /// At most [`MAX_REFINE_ROUNDS`].
     pub refine_rounds: usize,
     pub simulate: Box<SimulateFn>,
     /// The window every plan is executed and measured over (one horizon for every agent).

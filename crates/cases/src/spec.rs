@@ -58,6 +58,11 @@ pub enum T0Spec {
 
 /// `every:` stops where less than this much log is left after t0 (s).
 pub const MIN_HORIZON_S: f64 = 3.0;
+/// The finest `every:` step (s): attempt ids name t0 to 0.1 s, so finer steps collide.
+pub const MIN_T0_STEP_S: f64 = 0.1;
+/// Attempts one run lists at most (each about 100 bytes, and a case per agent): a budget on
+/// memory, past any sweep (10,000 logs of 20 s at `every:1s` over all behaviours is 1.6 million).
+pub const MAX_ATTEMPTS: usize = 20_000_000;
 
 impl std::str::FromStr for T0Spec {
     type Err = String;
@@ -69,6 +74,11 @@ impl std::str::FromStr for T0Spec {
                 .map_err(|_| format!("`{s}`: expected every:<seconds>s, e.g. every:1s"))?;
             if !(step > 0.0 && step.is_finite()) {
                 return Err(format!("`{s}`: the step must be positive"));
+            }
+            if step < MIN_T0_STEP_S - 1e-9 {
+                return Err(format!(
+                    "`{s}`: the step must be at least {MIN_T0_STEP_S} s (attempts are named by t0 to 0.1 s)"
+                ));
             }
             return Ok(T0Spec::Every(step));
         }
@@ -94,6 +104,47 @@ impl T0Spec {
             }
         }
     }
+}
+
+/// Checks `t0` over `scenes` before any list is built: the number of attempts within
+/// [`MAX_ATTEMPTS`] (counted, not listed), a listed t0 inside at least one scene, and at least
+/// one attempt (else [`crate::EvalError::NoAttempt`] says why: each scene's length against
+/// what `every:` needs).
+pub fn check_t0(scenes: &[SceneMeta], behaviours: usize, t0: &T0Spec) -> Result<(), crate::EvalError> {
+    let longest = scenes.iter().max_by(|a, b| a.duration_s.total_cmp(&b.duration_s));
+    let Some(longest) = longest else { return Ok(()) };
+    let per_scene: f64 = match t0 {
+        T0Spec::List(v) => {
+            if let Some(t) = v.iter().find(|t| **t >= longest.duration_s) {
+                return Err(crate::EvalError::Input(format!(
+                    "--t0 {t}: past the end of every scene (the longest, `{}`, is {:.1} s long)",
+                    longest.name, longest.duration_s
+                )));
+            }
+            v.len() as f64
+        }
+        T0Spec::Every(step) => {
+            scenes.iter().map(|s| (((s.duration_s - MIN_HORIZON_S + 1e-9) / step).floor()).max(0.0)).sum::<f64>()
+        }
+    };
+    let total = per_scene * behaviours as f64;
+    if total.is_nan() || total > MAX_ATTEMPTS as f64 {
+        return Err(crate::EvalError::Input(format!(
+            "--t0 gives {total:.3e} attempts over {} scenes and {behaviours} behaviours; at most {MAX_ATTEMPTS} in one run (a coarser step, fewer scenes or shards of separate runs)",
+            scenes.len()
+        )));
+    }
+    if total < 1.0 {
+        let why = match t0 {
+            T0Spec::Every(step) => format!(
+                "every:{step}s starts at {step} s and needs {MIN_HORIZON_S} s of log after t0, but the longest scene (`{}`) is {:.1} s long",
+                longest.name, longest.duration_s
+            ),
+            T0Spec::List(_) => "no behaviour to attempt".into(),
+        };
+        return Err(crate::EvalError::NoAttempt(format!("nothing to evaluate: {why}")));
+    }
+    Ok(())
 }
 
 /// What the attempt list needs of a scene: its name and length. A shard run reads every scene's

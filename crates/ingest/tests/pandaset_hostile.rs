@@ -390,3 +390,12 @@ fn per_frame_lists_are_counted_while_parsing() {
         &["lidar/timestamps.json", "more than 100000 entries"],
     );
 }
+
+#[test]
+fn a_missing_cuboid_file_is_refused_not_a_frame_without_boxes() {
+    // Was: every box of frame 1 dropped, exit 0, no word.
+    refused(
+        |src| std::fs::remove_file(src.join("annotations/cuboids/01.json")).unwrap(),
+        &["annotations/cuboids/01.json.gz", "missing", "2 of the 3 frames"],
+    );
+}

@@ -27,6 +27,10 @@ pub enum T0Choice {
     Search(T0Spec),
 }
 
+/// Seeds tried at one t0 at most (`run --seeds-per-t0`): a budget on time (each seed is a
+/// reasoned, simulated and measured case; the planner's candidates differ little past a few).
+pub const MAX_SEEDS_PER_T0: usize = 100;
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CaseRequest {
     pub behavior: Behavior,
@@ -42,6 +46,7 @@ pub struct CaseRequest {
     pub seed: u64,
     /// Seeds tried at each t0 (`seed`, `seed + 1`, ...): the planner's candidate order and the
     /// LLM's sampling depend on it.
+    /// At most [`MAX_SEEDS_PER_T0`].
     pub seeds_per_t0: usize,
     pub refine_rounds: usize,
     /// The window measured and rendered: by default the plan's own end ([`rendered_window`]);

@@ -16,6 +16,9 @@ use std::path::Path;
 
 /// Files fingerprinted per folder at most (a PandaSet sequence of 6 cameras x 80 frames has ~650).
 pub const MAX_FILES: usize = 10_000_000;
+/// Entries of any kind (folders, links, files, unreadable ones) visited per folder at most: a
+/// budget on the walk's time when links lead into a large tree.
+pub const MAX_ENTRIES: usize = 2 * MAX_FILES;
 
 #[derive(Debug, thiserror::Error)]
 pub enum FingerprintError {
@@ -23,15 +26,24 @@ pub enum FingerprintError {
     Missing(String),
     #[error("{path}: holds more than {max} files")]
     TooMany { path: String, max: usize },
+    #[error("{path}: {inside} is on the kernel's {fs} file system, not a log's folder")]
+    Pseudo { path: String, inside: String, fs: &'static str },
+    #[error("{path}: more than {max} entries (folders, links and files, links followed): not a log's folder")]
+    TooManyEntries { path: String, max: usize },
 }
 
 /// `path`'s fingerprint (see the module comment); entries whose path `skip` accepts are left out,
 /// with everything under them.
 pub fn folder(path: &Path, skip: impl Fn(&Path) -> bool) -> Result<Value, FingerprintError> {
-    folder_within(path, MAX_FILES, skip)
+    folder_within(path, MAX_FILES, MAX_ENTRIES, skip)
 }
 
-fn folder_within(path: &Path, max: usize, skip: impl Fn(&Path) -> bool) -> Result<Value, FingerprintError> {
+fn folder_within(
+    path: &Path,
+    max: usize,
+    max_entries: usize,
+    skip: impl Fn(&Path) -> bool,
+) -> Result<Value, FingerprintError> {
     let shown = || path.display().to_string();
     if !path.exists() {
         return Err(FingerprintError::Missing(shown()));
@@ -44,7 +56,20 @@ fn folder_within(path: &Path, max: usize, skip: impl Fn(&Path) -> bool) -> Resul
         h.write(at.strip_prefix(path).unwrap_or(at).to_string_lossy().as_bytes());
         h.write_u8(0);
     };
+    let mut entries = 0usize;
+    let pseudo: Vec<(u64, &'static str)> = [("/proc", "proc"), ("/sys", "sysfs")]
+        .into_iter()
+        .filter_map(|(p, fs)| {
+            use std::os::unix::fs::MetadataExt;
+            let root = std::fs::metadata("/").map(|m| m.dev()).ok();
+            std::fs::metadata(p).ok().map(|m| (m.dev(), fs)).filter(|(d, _)| Some(*d) != root)
+        })
+        .collect();
     while let Some(entry) = walk.next() {
+        entries += 1;
+        if entries > max_entries {
+            return Err(FingerprintError::TooManyEntries { path: shown(), max: max_entries });
+        }
         // What cannot be read (a folder without permission, a link back up the tree) is named in
         // the hash rather than failing here: the stage that reads the folder decides whether it
         // matters, and the key changes once it can be read.
@@ -60,6 +85,15 @@ fn folder_within(path: &Path, max: usize, skip: impl Fn(&Path) -> bool) -> Resul
                 walk.skip_current_dir();
             }
             continue;
+        }
+        if entry.file_type().is_dir() {
+            // /proc and /sys: their processes link to `/` and to each other, so a walk that
+            // follows links reads the whole machine for minutes.
+            use std::os::unix::fs::MetadataExt;
+            let dev = entry.metadata().map(|m| m.dev()).ok();
+            if let Some((_, fs)) = pseudo.iter().find(|(d, _)| Some(*d) == dev) {
+                return Err(FingerprintError::Pseudo { path: shown(), inside: entry.path().display().to_string(), fs });
+            }
         }
         if !entry.file_type().is_file() {
             continue;
@@ -152,7 +186,7 @@ mod tests {
         for i in 0..3 {
             std::fs::write(d.path().join(format!("{i}")), b"").unwrap();
         }
-        let e = folder_within(d.path(), 2, |_| false).unwrap_err().to_string();
+        let e = folder_within(d.path(), 2, MAX_ENTRIES, |_| false).unwrap_err().to_string();
         assert!(e.contains("more than 2 files"), "{e}");
     }
 
@@ -162,5 +196,21 @@ mod tests {
         assert_eq!(p["version"], env!("CARGO_PKG_VERSION"));
         assert!(p["bytes"].as_u64().is_some_and(|b| b > 0), "{p}");
         assert_eq!(program(), p);
+    }
+
+    #[test]
+    fn proc_is_refused_at_once_not_walked() {
+        if !Path::new("/proc/self").exists() {
+            println!("SKIP: no /proc");
+            return;
+        }
+        let start = std::time::Instant::now();
+        let d = tempfile::tempdir().unwrap();
+        std::os::unix::fs::symlink("/proc", d.path().join("proc")).unwrap();
+        for input in [Path::new("/proc"), &d.path().join("proc"), d.path()] {
+            let e = folder(input, |_| false).unwrap_err().to_string();
+            assert!(e.contains("kernel's proc file system"), "{e}");
+        }
+        assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());
     }
 }

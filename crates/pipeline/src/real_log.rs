@@ -42,7 +42,12 @@ pub fn build_scene(input: &Path, scene_dir: &Path, progress: &indicatif::Progres
     if input.join(scene::format::SCENE_FILE).is_file() {
         let staged = scene::StagedDir::new(scene_dir, true)?;
         copy_tree(input, staged.path(), true)?;
-        scene::load_scene(staged.path())?;
+        // The copy is checked, but the error names the input: the staging folder is gone by the
+        // time anyone reads the message.
+        scene::load_scene(staged.path()).map_err(|e| {
+            let text = e.to_string().replace(&staged.path().display().to_string(), &input.display().to_string());
+            PipelineError::stage("ingest the log", text)
+        })?;
         staged.commit()?;
         return Ok(());
     }
@@ -60,10 +65,15 @@ fn copy_tree(src: &Path, dst: &Path, top: bool) -> Result<(), PipelineError> {
             continue;
         }
         let (from, to) = (e.path(), dst.join(&name));
-        if e.file_type().map_err(PipelineError::io(&from))?.is_dir() {
+        // Links followed; only folders and regular files are copied: a FIFO would block the
+        // copy forever, a device has no end.
+        let meta = std::fs::metadata(&from).map_err(PipelineError::io(&from))?;
+        if meta.is_dir() {
             copy_tree(&from, &to, false)?;
-        } else {
+        } else if meta.is_file() {
             std::fs::copy(&from, &to).map_err(PipelineError::io(&from))?;
+        } else {
+            return Err(scene::SceneError::NotAFile { path: from, kind: scene::input::kind_of(&meta) }.into());
         }
     }
     Ok(())

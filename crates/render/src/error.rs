@@ -16,6 +16,9 @@ pub enum RenderError {
     Settings { what: String, detail: String },
     #[error("{}: {detail}", file.display())]
     Io { file: PathBuf, detail: String },
+    /// The PLY reader's error, which names its file.
+    #[error(transparent)]
+    Ply(#[from] splat::ply::PlyError),
     #[error("ffmpeg writing {}: {detail}", file.display())]
     Encoder { file: PathBuf, detail: String },
 }

@@ -165,7 +165,37 @@ pub const TIME_TOLERANCE_S: f64 = 1e-6;
 /// (The reasoning stage checks a stricter 40 m/s; this is the format's sanity bound.)
 pub const MAX_PLAUSIBLE_SPEED: f64 = 100.0;
 
+/// Waypoint spacing a plan may have (s): from [`MIN_DT_S`] (a 10 s plan is then 1,000
+/// waypoints) to [`MAX_DT_S`] (the widest gap the tracker and the scene's motion interpolate
+/// across, `motion::MAX_GAP_S`). `reason --dt` and every plan file are held to it.
+pub const MIN_DT_S: f64 = 0.01;
+pub const MAX_DT_S: f64 = 1.0;
+
+/// `dt` within [`MIN_DT_S`, `MAX_DT_S`]; the error says the range.
+pub fn check_dt(dt: f64) -> Result<(), String> {
+    if (MIN_DT_S..=MAX_DT_S).contains(&dt) {
+        Ok(())
+    } else {
+        Err(format!("{dt} s: expected a waypoint spacing from {MIN_DT_S} to {MAX_DT_S} s"))
+    }
+}
+
 impl Plan {
+    /// The plan's start and last waypoint within the scene's clock `[first, last]`, as `simulate`
+    /// needs them (the ego's motion past the log is unknown); the error is `(field, time)`.
+    /// `reason` checks what it writes with the same function.
+    pub fn check_span(&self, first: f64, last: f64) -> Result<(), (&'static str, f64)> {
+        let t0 = self.start_time_s;
+        if t0 < first - 1e-9 || t0 > last + 1e-9 {
+            return Err(("start_time_s", t0));
+        }
+        let t_end = self.end_time_s();
+        if t_end > last + 1e-6 {
+            return Err(("waypoints", t_end));
+        }
+        Ok(())
+    }
+
     /// Checks the plan on its own (scene-dependent checks live with the consumer):
     /// returns the first problem as `(field path, message)`.
     pub fn validate(&self) -> Result<(), (String, String)> {
@@ -184,6 +214,7 @@ impl Plan {
         if self.dt_s <= 0.0 || self.ttc_s <= 0.0 {
             return fail("dt_s".into(), format!("dt_s ({}) and ttc_s ({}) must be positive", self.dt_s, self.ttc_s));
         }
+        check_dt(self.dt_s).map_err(|m| ("dt_s".to_string(), m))?;
         if self.waypoints.len() < 2 {
             return fail("waypoints".into(), format!("need at least 2 waypoints, got {}", self.waypoints.len()));
         }

@@ -121,14 +121,8 @@ pub fn prepare<'a>(scene: &'a Scene, plan: &Plan, cfg: &RolloutConfig) -> Result
     let adversary =
         scene.track(&plan.adversary_track).ok_or_else(|| SimError::UnknownTrack(plan.adversary_track.clone()))?;
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
-    let t0 = plan.start_time_s;
-    if t0 < first - 1e-9 || t0 > last + 1e-9 {
-        return Err(SimError::OutsideScene { field: "start_time_s", t: t0, first, last });
-    }
-    let t_end = plan.end_time_s();
-    if t_end > last + 1e-6 {
-        return Err(SimError::OutsideScene { field: "waypoints", t: t_end, first, last });
-    }
+    plan.check_span(first, last).map_err(|(field, t)| SimError::OutsideScene { field, t, first, last })?;
+    let (t0, t_end) = (plan.start_time_s, plan.end_time_s());
     let run = scene
         .track_segments(adversary)
         .into_iter()

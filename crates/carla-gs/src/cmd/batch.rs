@@ -37,6 +37,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Plan(a) => {
             let m = Manifest::read(&a.manifest)?;
+            pipeline::batch::checks::inputs_exist(&m, &a.manifest)?;
             let p = plan::build(&m, &a.manifest, &a.out)?;
             let file = a.out.join(plan::PLAN_FILE);
             scene::format::write_json_pretty(&file, &p)?;
@@ -50,6 +51,7 @@ pub fn run(c: Command) -> anyhow::Result<()> {
         Command::Exec(a) => {
             let p = node::read_plan(&a.plan)?;
             let n = node::find(&p, a.node.as_deref(), a.stage.as_deref().zip(a.index))?;
+            node::check_command(n)?;
             let me = std::env::current_exe()?;
             match node::exec(&p, n, &me)? {
                 node::Outcome::Skipped(s) => {

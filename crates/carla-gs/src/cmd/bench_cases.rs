@@ -137,7 +137,18 @@ fn kitti(data: &Path, windows: usize, len_s: f64) -> anyhow::Result<Vec<Scene>> 
         let dir = data.join("kitti/poses");
         let path = kitti_path(&dir.join(format!("{seq}.txt")), &dir.join(format!("{seq}_times.txt")))?;
         let (Some(first), Some(last)) = (path.first(), path.last()) else { continue };
-        let span = (last.t - first.t - len_s).max(0.0);
+        let length = last.t - first.t;
+        anyhow::ensure!(
+            len_s <= length,
+            "--kitti-window-s {len_s}: longer than KITTI sequence {seq} ({length:.1} s); give at most {:.0}",
+            length.floor()
+        );
+        let span = length - len_s;
+        // Windows are named by their start to the second: two within a second would share a name.
+        anyhow::ensure!(
+            windows <= 1 || span / (windows - 1) as f64 >= 1.0,
+            "--kitti-windows {windows} of {len_s} s: sequence {seq} ({length:.1} s) leaves their starts less than 1 s apart; give fewer or shorter windows"
+        );
         for k in 0..windows {
             let start = first.t + if windows > 1 { span * k as f64 / (windows - 1) as f64 } else { 0.0 };
             let part: Vec<Pose2> = path.iter().copied().filter(|p| p.t >= start && p.t <= start + len_s).collect();
@@ -163,6 +174,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         l => list(l)?,
     };
     let t0: T0Spec = a.t0.parse().map_err(anyhow::Error::msg)?;
+    anyhow::ensure!(
+        a.refine_rounds <= cases::runner::MAX_REFINE_ROUNDS,
+        "--refine-rounds {}: expected 0 to {}",
+        a.refine_rounds,
+        cases::runner::MAX_REFINE_ROUNDS
+    );
     let mut base: Vec<(String, Scene)> = Vec::new();
     for source in a.sources.split(',').map(str::trim) {
         let scenes = match source {
@@ -219,7 +236,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Err(format!("{} needs a backend; bench-cases runs deterministic agents", g.as_str()))
     };
     let pb = super::progress::count_bar("cases");
-    let report = cases::run_eval(&scenes, &cfg, &factory, &pb)?;
+    let report = cases::run_eval(&scenes, &cfg, &factory, &pb).map_err(super::eval_error)?;
     pb.finish_and_clear();
     let mut bench = stress::bench::bench_report(&report, &scenes, &labels, &reason, &a.t0, corpus_s);
     bench.bench_wall_s = start.elapsed().as_secs_f64();

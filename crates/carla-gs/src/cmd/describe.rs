@@ -38,5 +38,11 @@ impl DescribeArgs {
 
 /// Prints a reading the way every command shows it.
 pub fn show(sentence: &str, reader: &str, where_: &str, intent: &Intent, summary: &str) {
-    println!("read \"{sentence}\"{where_} ({reader}, {}) as: {summary}", validity_text(&intent.validity));
+    // Escaped: the sentence (and an LLM's summary of it) may hold terminal control characters.
+    println!(
+        "read \"{}\"{where_} ({reader}, {}) as: {}",
+        super::message::printable(sentence),
+        validity_text(&intent.validity),
+        super::message::printable(summary)
+    );
 }

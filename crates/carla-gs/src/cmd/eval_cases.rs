@@ -84,6 +84,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         list => list.split(',').map(|s| s.trim().parse()).collect::<Result<_, String>>().map_err(anyhow::Error::msg)?,
     };
     let t0: T0Spec = a.t0.parse().map_err(anyhow::Error::msg)?;
+    anyhow::ensure!(
+        a.refine_rounds <= cases::runner::MAX_REFINE_ROUNDS,
+        "--refine-rounds {}: expected 0 to {}",
+        a.refine_rounds,
+        cases::runner::MAX_REFINE_ROUNDS
+    );
     let reason_opts = a.protocol.apply(a.constraints.apply(ReasonOptions::default())?);
     let mut requests = std::collections::BTreeMap::new();
     if let Some(text) = &a.describe.describe {
@@ -151,8 +157,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     if lazy {
-        let needed: std::collections::BTreeSet<String> =
-            cases::shard_attempts(&universe, &cfg)?.attempts.into_iter().map(|x| x.scene).collect();
+        let needed: std::collections::BTreeSet<String> = cases::shard_attempts(&universe, &cfg)
+            .map_err(super::eval_error)?
+            .attempts
+            .into_iter()
+            .map(|x| x.scene)
+            .collect();
         for (d, m) in dirs.iter().zip(&universe) {
             if needed.contains(&m.name) {
                 scenes.push(scene::load_scene(d)?);
@@ -160,7 +170,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     let pb = super::progress::count_bar("cases");
-    let report = cases::run_eval_in(&universe, &scenes, &cfg, &factory, &pb)?;
+    let report = cases::run_eval_in(&universe, &scenes, &cfg, &factory, &pb).map_err(super::eval_error)?;
     pb.finish_and_clear();
     if let Some(shard) = a.shard {
         println!(

@@ -39,3 +39,11 @@ impl std::fmt::Display for NoCase {
 }
 
 impl std::error::Error for NoCase {}
+
+/// An evaluation's error for `main`: a run with nothing to evaluate is [`NoCase`] (exit 3).
+pub fn eval_error(e: cases::EvalError) -> anyhow::Error {
+    match e {
+        cases::EvalError::NoAttempt(m) => NoCase(m).into(),
+        e => e.into(),
+    }
+}

@@ -100,6 +100,8 @@ fn read_description(a: &Args, scene: &scene::Scene, o: ReasonOptions, text: &str
 /// Writes the plan (exit 0), or says why no case is possible ([`super::NoCase`], exit 3).
 pub fn run(a: Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.t0.is_finite(), "--t0 must be a finite number of seconds, got {}", a.t0);
+    // What `simulate` refuses of a plan, refused here first (`scene::plan::check_dt`).
+    scene::plan::check_dt(a.dt).map_err(|e| anyhow::anyhow!("--dt {e}"))?;
     let plan_json = super::out_file::has_format("carla-gs-plan/");
     super::out_file::check_out_file(
         &a.out,
@@ -153,6 +155,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             Err(super::NoCase(format!("no plan (--repair none): {reason}; nothing written")).into())
         }
         Outcome::Plan { plan, stats } => {
+            // The span `simulate` checks, with its function: a plan past the log is not written.
+            let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
+            if let Err((field, t)) = plan.check_span(first, last) {
+                return Err(super::NoCase(format!(
+                    "the plan's `{field}` reach {t:.3} s, past the log's [{first:.3}, {last:.3}] s (--dt {} s on a {:.1} s log?); nothing written",
+                    a.dt,
+                    last - first
+                ))
+                .into());
+            }
             scene::format::write_json_pretty(&a.out, &plan)?;
             let class = scene.track(&plan.adversary_track).map_or("track", |t| t.class.as_str());
             println!(

@@ -101,6 +101,18 @@ pub struct RunArgs {
 }
 
 pub fn run(a: RunArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (1..=pipeline::case::MAX_SEEDS_PER_T0).contains(&a.seeds_per_t0),
+        "--seeds-per-t0 {}: expected 1 to {}",
+        a.seeds_per_t0,
+        pipeline::case::MAX_SEEDS_PER_T0
+    );
+    anyhow::ensure!(
+        a.refine_rounds <= cases::runner::MAX_REFINE_ROUNDS,
+        "--refine-rounds {}: expected 0 to {}",
+        a.refine_rounds,
+        cases::runner::MAX_REFINE_ROUNDS
+    );
     let scene = scene::load_scene(&a.scene)?;
     let (mut model, _) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
     a.replace.apply(&mut model, &a.scene, &a.model)?;

@@ -94,6 +94,42 @@ pub struct BenchArgs {
     out: PathBuf,
 }
 
+/// Timed iterations per case at most (a budget on time: the median settles long before).
+const MAX_BENCH_ITERS: usize = 100_000;
+/// Cases in one `--cases` list at most.
+const MAX_BENCH_CASES: usize = 64;
+
+/// `--cases NxWxH,...`, each checked before anything is allocated: N up to
+/// [`splat::ply::MAX_GAUSSIANS`], W and H from 1 to [`scene::camera::MAX_CAMERA_SIDE`], W x H up to
+/// [`scene::camera::MAX_CAMERA_PIXELS`].
+/// A `--cases` entry: its text, and N, W, H.
+type BenchCase = (String, (usize, u32, u32));
+
+fn bench_cases(list: &str) -> anyhow::Result<Vec<BenchCase>> {
+    let cases: Vec<&str> = list.split(',').map(str::trim).collect();
+    anyhow::ensure!(cases.len() <= MAX_BENCH_CASES, "--cases: {} cases; at most {MAX_BENCH_CASES}", cases.len());
+    let (max_n, max_side, max_px) =
+        (splat::ply::MAX_GAUSSIANS, scene::camera::MAX_CAMERA_SIDE, scene::camera::MAX_CAMERA_PIXELS);
+    cases
+        .into_iter()
+        .map(|case| {
+            let v: Vec<u64> = case
+                .split('x')
+                .map(|s| s.trim().parse())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--cases: `{case}` is not NxWxH"))?;
+            anyhow::ensure!(v.len() == 3, "--cases: `{case}` is not NxWxH");
+            let (n, w, h) = (v[0], v[1], v[2]);
+            anyhow::ensure!(n <= max_n as u64, "--cases: `{case}`: {n} Gaussians; at most {max_n}");
+            anyhow::ensure!(
+                (1..=max_side).contains(&w) && (1..=max_side).contains(&h) && w * h <= max_px,
+                "--cases: `{case}`: a {w}x{h} image; expected sides of 1 to {max_side} and at most {max_px} pixels"
+            );
+            Ok((case.to_string(), (n as usize, w as u32, h as u32)))
+        })
+        .collect()
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -160,15 +196,18 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    anyhow::ensure!(a.gpu_iters > 0, "--gpu-iters must be positive");
-    for case in a.cases.split(',').map(str::trim) {
-        let v: Vec<usize> = case
-            .split('x')
-            .map(|s| s.trim().parse())
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("--cases: `{case}` is not NxWxH"))?;
-        anyhow::ensure!(v.len() == 3, "--cases: `{case}` is not NxWxH");
-        let (n, w, h) = (v[0], v[1] as u32, v[2] as u32);
+    anyhow::ensure!(
+        (1..=MAX_BENCH_ITERS).contains(&a.gpu_iters),
+        "--gpu-iters {}: expected 1 to {MAX_BENCH_ITERS}",
+        a.gpu_iters
+    );
+    anyhow::ensure!(
+        !cpu || (1..=MAX_BENCH_ITERS).contains(&a.iters),
+        "--iters {}: expected 1 to {MAX_BENCH_ITERS} (the median of the timed iterations is reported)",
+        a.iters
+    );
+    let cases = bench_cases(&a.cases)?;
+    for (case, (n, w, h)) in cases {
         let cam = splat::Camera::at_origin(w, h, 0.8 * w as f64);
         let n_px = w as usize * h as usize;
         let (ones, zeros, zeros3) = (vec![[1.0; 3]; n_px], vec![0.0; n_px], vec![[0.0; 3]; n_px]);

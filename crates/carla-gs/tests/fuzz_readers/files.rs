@@ -50,6 +50,11 @@ fn fixture() -> &'static Fixture {
     })
 }
 
+/// The fixture's scene folder (for the targets of other modules).
+pub fn fixture_scene() -> PathBuf {
+    fixture().scene.clone()
+}
+
 /// Writes `bytes` to `dir/name` and returns the path.
 fn put(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
     let p = dir.join(name);

@@ -177,9 +177,10 @@ pub fn read(dir: &Path, staging: Option<&Path>, progress: &indicatif::ProgressBa
     })
 }
 
-/// Per frame, its cuboids (`NN.json.gz` or `NN.json`; a frame without a file has none), within
-/// [`cuboids::MAX_CUBOID_RECORDS`] in all. A cuboid folder or file that is there but cannot be
-/// used is refused.
+/// Per frame, its cuboids (`NN.json.gz` or `NN.json`), within [`cuboids::MAX_CUBOID_RECORDS`] in
+/// all. A cuboid folder or file that is there but cannot be used is refused, and so is a frame
+/// without a file when other frames have one: its boxes would be silently lost (a sequence without
+/// any cuboid file has no tracks, and says so).
 fn read_cuboids(dir: &Path, n: usize) -> Result<Vec<Vec<cuboids::Cuboid>>, IngestError> {
     let cub = dir.join("annotations").join("cuboids");
     match stat(&cub)? {
@@ -191,7 +192,7 @@ fn read_cuboids(dir: &Path, n: usize) -> Result<Vec<Vec<cuboids::Cuboid>>, Inges
         Some(_) => {}
     }
     let mut out = Vec::with_capacity(n);
-    let (mut found, mut records) = (0, 0);
+    let (mut found, mut records, mut missing) = (0, 0, Vec::new());
     for k in 0..n {
         let mut file = None;
         for name in [format!("{k:02}.json.gz"), format!("{k:02}.json")] {
@@ -208,8 +209,20 @@ fn read_cuboids(dir: &Path, n: usize) -> Result<Vec<Vec<cuboids::Cuboid>>, Inges
                 records += frame.len();
                 out.push(frame);
             }
-            None => out.push(Vec::new()),
+            None => {
+                missing.push(k);
+                out.push(Vec::new())
+            }
         }
+    }
+    if let (true, Some(k)) = (found > 0, missing.first()) {
+        return Err(content(
+            cub.join(format!("{k:02}.json.gz")),
+            format!(
+                "missing (nor {k:02}.json), while {found} of the {n} frames have a cuboid file: frame {k} would lose                  every box ({} frame(s) without one)",
+                missing.len()
+            ),
+        ));
     }
     if found == 0 {
         tracing::warn!(dir = %cub.display(), "no cuboid files: the scene has no tracks");

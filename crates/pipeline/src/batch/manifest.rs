@@ -165,13 +165,12 @@ fn check_resources(file: &Path, stage: &str, r: &Resources) -> Result<(), BatchE
 impl Manifest {
     /// Reads and checks `file`; paths stay as written (see [`Manifest::resolve`]).
     pub fn read(file: &Path) -> Result<Manifest, BatchError> {
-        let len = std::fs::metadata(file).map_err(|e| scene::SceneError::io(file, e))?.len();
-        if len > MAX_MANIFEST_BYTES {
-            return Err(BatchError::invalid(file, format!("is {len} bytes; expected at most {MAX_MANIFEST_BYTES}")));
-        }
-        let text = std::fs::read_to_string(file).map_err(|e| scene::SceneError::io(file, e))?;
+        // A regular file only (a FIFO would block the read forever), within the budget.
+        let bytes = scene::input::read_capped(file, MAX_MANIFEST_BYTES, "a batch manifest")?;
+        let text = String::from_utf8(bytes).map_err(|_| BatchError::invalid(file, "is not UTF-8 text"))?;
         let m: Manifest = toml::from_str(&text).map_err(|e| BatchError::invalid(file, e.to_string()))?;
         m.check(file)?;
+        super::checks::stage_values(&m, file)?;
         Ok(m)
     }
 

@@ -11,6 +11,7 @@
 //! No scheduler lives here: order, placement and retries are the engine's.
 
 pub mod budget;
+pub mod checks;
 pub mod manifest;
 pub mod node;
 pub mod plan;

@@ -38,12 +38,28 @@ pub enum Outcome {
     Ran { exit_code: i32, seconds: f64 },
 }
 
-pub fn read_plan(file: &Path) -> Result<Plan, BatchError> {
-    let len = std::fs::metadata(file).map_err(|e| scene::SceneError::io(file, e))?.len();
-    if len > MAX_PLAN_BYTES {
-        return Err(BatchError::invalid(file, format!("is {len} bytes; expected at most {MAX_PLAN_BYTES}")));
+/// The `carla-gs` commands a plan's nodes run (`super::plan`): never `batch` itself, which
+/// (`batch exec` of the node's own plan) would recurse without bound.
+pub const NODE_COMMANDS: [&str; 6] = ["ingest", "priors", "train", "eval-cases", "tables", "run"];
+
+/// Refuses a node whose command is not one of [`NODE_COMMANDS`] (a hand-edited plan).
+pub fn check_command(node: &Node) -> Result<(), BatchError> {
+    match node.args.first().map(String::as_str) {
+        Some(c) if NODE_COMMANDS.contains(&c) => Ok(()),
+        other => Err(BatchError::Node {
+            node: node.id.clone(),
+            message: format!(
+                "runs `carla-gs {}`; a plan's node runs one of {} (a hand-edited plan?)",
+                other.unwrap_or(""),
+                NODE_COMMANDS.join(", ")
+            ),
+        }),
     }
-    let plan: Plan = scene::format::read_json(file)?;
+}
+
+pub fn read_plan(file: &Path) -> Result<Plan, BatchError> {
+    let bytes = scene::input::read_capped(file, MAX_PLAN_BYTES, "a batch plan")?;
+    let plan: Plan = serde_json::from_slice(&bytes).map_err(|e| BatchError::invalid(file, e.to_string()))?;
     if plan.format != PLAN_FORMAT || plan.version != PLAN_VERSION {
         return Err(BatchError::invalid(
             file,
@@ -91,8 +107,9 @@ pub fn stamp_path(plan: &Plan, node: &Node) -> PathBuf {
 }
 
 fn read_stamp(plan: &Plan, node: &Node) -> Option<Stamp> {
-    let text = std::fs::read_to_string(stamp_path(plan, node)).ok()?;
-    serde_json::from_str(&text).ok()
+    // A stamp is a few hundred bytes; anything else (a FIFO, a huge file) is no stamp.
+    let text = scene::input::read_capped(&stamp_path(plan, node), 1 << 20, "a batch stamp").ok()?;
+    serde_json::from_slice(&text).ok()
 }
 
 /// The node's stamp, if it finished from `key` and its outputs are all there.

@@ -135,8 +135,55 @@ impl Default for Library {
     }
 }
 
-fn ply_err(file: &Path) -> impl Fn(splat::ply::PlyError) -> RenderError + '_ {
-    move |e| RenderError::io(file, e)
+/// The PLY reader's error already names the file: kept as it is, not prefixed again.
+fn ply_err(_file: &Path) -> impl Fn(splat::ply::PlyError) -> RenderError {
+    RenderError::Ply
+}
+
+/// A Gaussian larger than this many times the asset's whole extent (its means' bounding box) is
+/// no part of an object.
+const MAX_SCALE_RATIO: f64 = 10.0;
+
+/// Values an asset can be drawn with, whatever its unit (alignment scales it to the box):
+/// means within [`scene::executed_check::MAX_COORD_M`], each Gaussian's scales at most
+/// [`MAX_SCALE_RATIO`] times the asset's extent, and a rotation quaternion that is not zero. An asset breaking them (log-scales of 87, an all-zero quaternion) was drawn as
+/// nothing and its case reported as valid; it is refused, naming the vertex and property.
+fn check_asset_values(path: &Path, g: &Gaussians) -> Result<(), RenderError> {
+    let bad = |i: usize, property: String, message: String| {
+        RenderError::io(path, format!("vertex {i}: property `{property}`: {message}"))
+    };
+    let max = scene::executed_check::MAX_COORD_M;
+    let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+    for (i, m) in g.means.iter().enumerate() {
+        for k in 0..3 {
+            if m[k].is_nan() || m[k].abs() > max {
+                return Err(bad(i, ["x", "y", "z"][k].into(), format!("{:e}; expected at most {max:e} in size", m[k])));
+            }
+            lo[k] = lo[k].min(m[k]);
+            hi[k] = hi[k].max(m[k]);
+        }
+    }
+    let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max).max(1e-6);
+    let largest = MAX_SCALE_RATIO * extent;
+    for (i, (s, q)) in g.log_scales.iter().zip(&g.rotations).enumerate() {
+        for (k, v) in s.iter().enumerate() {
+            let scale = v.exp();
+            if scale.is_nan() || scale > largest {
+                return Err(bad(
+                    i,
+                    format!("scale_{k}"),
+                    format!(
+                        "log-scale {v} is a Gaussian of {scale:.3e}; the asset spans {extent:.3e}, so expected at most {largest:.3e}"
+                    ),
+                ));
+            }
+        }
+        let norm2: f64 = q.iter().map(|c| c * c).sum();
+        if norm2.is_nan() || norm2 <= 1e-12 {
+            return Err(bad(i, "rot_0..rot_3".into(), "the rotation quaternion is zero".into()));
+        }
+    }
+    Ok(())
 }
 
 /// Reads a 3DGS PLY and turns it so z is up.
@@ -145,6 +192,7 @@ pub fn read_asset_ply(path: &Path, up: UpAxis) -> Result<Gaussians, RenderError>
     if g.is_empty() {
         return Err(RenderError::io(path, "the PLY has no Gaussians"));
     }
+    check_asset_values(path, &g)?;
     if up == UpAxis::Z {
         return Ok(g);
     }
