@@ -186,7 +186,8 @@ fn row1(
             _ => 0,
         })
         .sum();
-    let planned = if split { rounds.len() } else { results.iter().filter(|r| matches!(r.status, Status::Done { .. })).count() };
+    let planned =
+        if split { rounds.len() } else { results.iter().filter(|r| matches!(r.status, Status::Done { .. })).count() };
     Table1Row {
         agent,
         variant: variant.into(),

@@ -80,7 +80,10 @@ fn tables_plots_determinism_and_failures() {
             assert_eq!(row(split[l].1).planned + row(split[i].1).planned, row(w).planned, "{w}");
         }
         let ins = row(split[3].1);
-        println!("planner + refine, inserted: planned {}, verified {}, valid {}", ins.planned, ins.verified_k, ins.valid);
+        println!(
+            "planner + refine, inserted: planned {}, verified {}, valid {}",
+            ins.planned, ins.verified_k, ins.valid
+        );
     }
     assert!(a.table1.iter().all(|r| r.attempts == 32));
     let whole_rows = a.table1.iter().filter(|r| !r.variant.contains("adversaries"));

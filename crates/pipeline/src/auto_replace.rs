@@ -176,16 +176,6 @@ impl Swapper<'_> {
         if let Some(ins) = &executed.plan.inserted {
             // Never seen by the log: always drawn from the library.
             let mut model = crate::inserted::with_empty_actor(self.model, track, ins);
-            let pairs = [(track.clone(), AUTO.to_string())];
-            let done = render::asset::replace::replace_specs(
-                &mut model,
-                self.scene_dir,
-                Some(self.model_dir),
-                &pairs,
-                self.library,
-                UpAxis::Z,
-                &AlignOptions::default(),
-            )?;
             let check = AdversaryCheck {
                 track_id: track.clone(),
                 log_closest_m: None,
@@ -193,7 +183,7 @@ impl Swapper<'_> {
                 case_closest_m: case_closest,
                 replaced: true,
                 why: format!("inserted ({}): drawn from the asset library", ins.lane),
-                auto: done.into_iter().next().and_then(|r| r.auto),
+                auto: self.fill_from_library(&mut model, track)?,
             };
             return Ok((Some(model), check));
         }
@@ -216,9 +206,16 @@ impl Swapper<'_> {
             return Ok((None, check));
         }
         let mut model = self.model.clone();
-        let pairs = [(track.clone(), AUTO.to_string())];
+        check.replaced = true;
+        check.auto = self.fill_from_library(&mut model, track)?;
+        Ok((Some(model), check))
+    }
+
+    /// Replaces actor `track` of `model` by the library's `auto` choice; that choice.
+    fn fill_from_library(&self, model: &mut SceneModel, track: &str) -> Result<Option<AutoChoice>, PipelineError> {
+        let pairs = [(track.to_string(), AUTO.to_string())];
         let done = render::asset::replace::replace_specs(
-            &mut model,
+            model,
             self.scene_dir,
             Some(self.model_dir),
             &pairs,
@@ -226,9 +223,7 @@ impl Swapper<'_> {
             UpAxis::Z,
             &AlignOptions::default(),
         )?;
-        check.replaced = true;
-        check.auto = done.into_iter().next().and_then(|r| r.auto);
-        Ok((Some(model), check))
+        Ok(done.into_iter().next().and_then(|r| r.auto))
     }
 }
 

@@ -139,14 +139,12 @@ pub fn lane_supported(
     }
 }
 
+/// A logged road user at one frame: id, box centre, heading, size.
+type Present<'a> = (&'a str, scene::glam::DVec3, f64, [f64; 3]);
+
 /// The first logged road user (or `ego`) and the time at which the box `size_lwh` grown by
 /// `margin` on every side, at `poses`, overlaps it, over the frames up to t0.
-pub fn first_overlap(
-    world: &World,
-    poses: &[InsertedPose],
-    size_lwh: [f64; 3],
-    margin: f64,
-) -> Option<(String, f64)> {
+pub fn first_overlap(world: &World, poses: &[InsertedPose], size_lwh: [f64; 3], margin: f64) -> Option<(String, f64)> {
     let scene = world.scene;
     let me = Cuboid::new(Vector::new(size_lwh[0] / 2.0 + margin, size_lwh[1] / 2.0 + margin));
     let me_r = 0.5 * (size_lwh[0] + 2.0 * margin).hypot(size_lwh[1] + 2.0 * margin);
@@ -154,7 +152,7 @@ pub fn first_overlap(
     let ego_box = Cuboid::new(Vector::new(el / 2.0, ew / 2.0));
     let ego_id = scene.ego.track_id.as_deref();
     // States by frame, so that each frame looks only at who is there.
-    let mut by_frame: Vec<Vec<(&str, scene::glam::DVec3, f64, [f64; 3])>> = vec![Vec::new(); scene.frames.len()];
+    let mut by_frame: Vec<Vec<Present>> = vec![Vec::new(); scene.frames.len()];
     let frames = by_frame.len();
     for t in scene.tracks.iter().filter(|t| t.class != ObjectClass::Sign && Some(t.id.as_str()) != ego_id) {
         for st in t.valid_states().filter(|st| st.frame < frames) {

@@ -217,7 +217,8 @@ mod tests {
         let a1 = 1.3;
         let target = DVec2::new(28.2 * f64::cos(a1), 28.2 * f64::sin(a1));
         let v_end = DVec2::from_angle(a1 + FRAC_PI_2) * 2.0;
-        let m = LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &v, target, v_end, 4.0, 2.0).expect("on a lane");
+        let m =
+            LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &v, target, v_end, 4.0, 2.0).expect("on a lane");
         let w = m.waypoints(1.0, 0.1);
         assert_eq!(w.len(), 41);
         assert!((w[40].t - 5.0).abs() < 1e-9 && DVec2::new(w[40].x, w[40].y).distance(target) < 1e-12);
@@ -240,17 +241,40 @@ mod tests {
     fn no_lane_plan_off_the_lanes_the_wrong_way_or_behind() {
         let map = curve(&[30.0]);
         let target = DVec2::new(30.0 * 0.8f64.cos(), 30.0 * 0.8f64.sin());
-        let ok = LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &car_on(30.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
+        let ok = LaneMotion::new(
+            &Lanes::from_lanes(map.clone()).unwrap(),
+            &car_on(30.0, 0.0, 8.0),
+            target,
+            DVec2::ZERO,
+            3.0,
+            2.0,
+        );
         assert!(ok.is_ok());
-        let off = LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &car_on(33.0, 0.0, 8.0), target, DVec2::ZERO, 3.0, 2.0);
+        let off = LaneMotion::new(
+            &Lanes::from_lanes(map.clone()).unwrap(),
+            &car_on(33.0, 0.0, 8.0),
+            target,
+            DVec2::ZERO,
+            3.0,
+            2.0,
+        );
         assert!(off.unwrap_err().contains("no lane centre within 2 m"));
         let mut back = car_on(30.0, 0.0, 8.0);
         back.now.v = -back.now.v;
         back.now.heading += std::f64::consts::PI;
-        assert!(LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &back, target, DVec2::ZERO, 3.0, 2.0).is_err());
+        assert!(
+            LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &back, target, DVec2::ZERO, 3.0, 2.0).is_err()
+        );
         let behind = DVec2::new(30.0 * (-0.3f64).cos(), 30.0 * (-0.3f64).sin());
-        let e = LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &car_on(30.0, 0.0, 8.0), behind, DVec2::ZERO, 3.0, 2.0)
-            .unwrap_err();
+        let e = LaneMotion::new(
+            &Lanes::from_lanes(map.clone()).unwrap(),
+            &car_on(30.0, 0.0, 8.0),
+            behind,
+            DVec2::ZERO,
+            3.0,
+            2.0,
+        )
+        .unwrap_err();
         assert!(e.contains("not ahead"), "{e}");
     }
 
@@ -303,7 +327,9 @@ mod drift_tests {
         };
         // Head-on target in the other lane, 36 m on, reached in 4 s at 8 m/s.
         let target = DVec2::new(24.0, -1.8);
-        let m = LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &car, target, DVec2::new(-8.0, 0.0), 4.0, 2.0).unwrap();
+        let m =
+            LaneMotion::new(&Lanes::from_lanes(map.clone()).unwrap(), &car, target, DVec2::new(-8.0, 0.0), 4.0, 2.0)
+                .unwrap();
         assert!(m.path.lane_ids.windows(2).any(|w| w == [115, 114]), "{:?}", m.path.lane_ids);
         let w = m.waypoints(0.0, 0.1);
         // In its lane until the last 2.5 s (about 21 m from the target), then across.

@@ -3,8 +3,8 @@
 //! headings from real timestamps. All planning code reads the scene through this view.
 
 use scene::glam::DVec2;
-use scene::motion::{sample_series, Pose2};
 use scene::map::Region;
+use scene::motion::{sample_series, Pose2};
 use scene::{ObjectClass, Scene, Track};
 
 /// How far beyond the candidate radius around the ego's path the map is kept (m): a

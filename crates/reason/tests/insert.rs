@@ -7,7 +7,9 @@ use reason::{reason, Agent, Outcome, ReasonOptions};
 use scene::glam::{DVec2, DVec3};
 use scene::inserted::{with_inserted, Entry};
 use scene::map::{Map, Polyline};
-use scene::{Behavior, Ego, EgoSizeSource, Frame, ObjectClass, Scene, Source, SourceKind, Track, TrackState, Transform3};
+use scene::{
+    Behavior, Ego, EgoSizeSource, Frame, ObjectClass, Scene, Source, SourceKind, Track, TrackState, Transform3,
+};
 
 const EGO_SPEED: f64 = 10.0;
 
@@ -62,7 +64,8 @@ fn an_empty_road_gets_an_inserted_lead_car_that_every_stage_can_put_back() {
     let s = road(vec![]);
     let never = reason(&s, &options(Behavior::SuddenBraking, InsertMode::Never), Agent::Planner).unwrap();
     assert!(matches!(never, Outcome::NoFeasible { .. }), "{never:?}");
-    let Outcome::Plan { plan, .. } = reason(&s, &options(Behavior::SuddenBraking, InsertMode::Fallback), Agent::Planner).unwrap()
+    let Outcome::Plan { plan, .. } =
+        reason(&s, &options(Behavior::SuddenBraking, InsertMode::Fallback), Agent::Planner).unwrap()
     else {
         panic!("expected an inserted plan")
     };
@@ -123,9 +126,13 @@ fn lanes_beside_the_ego_come_from_the_map_or_the_traffic() {
     assert!(found[0].inserted.lane.contains("logged traffic"), "{}", found[0].inserted.lane);
     // A map with a lane heading the ego's way to the right: that lane.
     let mut s = road(vec![]);
-    let line = |y: f64, x0: f64, x1: f64| (0..=((x1 - x0) as usize)).map(|k| DVec3::new(x0 + k as f64, y, 0.0)).collect();
+    let line =
+        |y: f64, x0: f64, x1: f64| (0..=((x1 - x0) as usize)).map(|k| DVec3::new(x0 + k as f64, y, 0.0)).collect();
     s.map = Some(Map {
-        lanes: vec![Polyline { id: 1, points: line(0.0, -100.0, 400.0) }, Polyline { id: 2, points: line(-3.6, -100.0, 400.0) }],
+        lanes: vec![
+            Polyline { id: 1, points: line(0.0, -100.0, 400.0) },
+            Polyline { id: 2, points: line(-3.6, -100.0, 400.0) },
+        ],
         ..Map::default()
     });
     let found = placements(&s, &options(Behavior::SuddenCutIn, InsertMode::Always));
@@ -151,10 +158,14 @@ fn a_city_sized_map_is_planned_on() {
         let (x0, y) = (-4000.0 + col * 50.0, -5000.0 + row * 100.0 + 3.6);
         lanes.push(Polyline { id: k, points: (0..=40).map(|i| DVec3::new(x0 + i as f64, y, 0.0)).collect() });
     }
-    lanes.push(Polyline { id: 99_999, points: (0..=2000).map(|i| DVec3::new(-500.0 + i as f64 * 0.5, 0.0, 0.0)).collect() });
+    lanes.push(Polyline {
+        id: 99_999,
+        points: (0..=2000).map(|i| DVec3::new(-500.0 + i as f64 * 0.5, 0.0, 0.0)).collect(),
+    });
     // 50 km of boundary zigzagging around the city, a point every metre.
-    let boundary: Vec<DVec3> =
-        (0..=50_000).map(|i| DVec3::new(-5000.0 + (i % 10_000) as f64, -6.0 - (i / 10_000) as f64 * 2000.0, 0.0)).collect();
+    let boundary: Vec<DVec3> = (0..=50_000)
+        .map(|i| DVec3::new(-5000.0 + (i % 10_000) as f64, -6.0 - (i / 10_000) as f64 * 2000.0, 0.0))
+        .collect();
     s.map = Some(Map { lanes, road_edges: vec![Polyline { id: 1, points: boundary }], ..Map::default() });
     let out = reason(&s, &options(Behavior::SuddenBraking, InsertMode::Never), Agent::Planner).unwrap();
     match out {
