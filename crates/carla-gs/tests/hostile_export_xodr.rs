@@ -1,6 +1,7 @@
 //! Fuzzing find about `export-xodr`: a lane of 1,000,000 points wrote a 162 MB OpenDRIVE file,
 //! and a point 1e300 m away was written. Both exit with code 2 naming the lane and the budget,
-//! before anything is written.
+//! before anything is written. A lane that is long but reaches far beyond the scene (a city's
+//! boundary) is not refused: the map is cropped to the scene's region first (issue 53).
 
 mod cli_support;
 
@@ -29,7 +30,16 @@ fn huge_or_absurd_lanes_are_refused_before_writing() {
     std::fs::remove_file(&xodr).unwrap();
     let pristine = std::fs::read(scene.join("scene.json")).unwrap();
 
+    // 500 km of lane, 0.5 m apart: cropped to the scene's region and written.
     add_lane(&scene, (0..1_000_000).map(|k| serde_json::json!([k as f64 * 0.5, 0.0, 0.0])).collect());
+    ok(carla_gs(&["export-xodr", s(&scene), "--out", s(&xodr)]));
+    let written = std::fs::metadata(&xodr).unwrap().len();
+    assert!(written < 5_000_000, "the cropped lane wrote {written} bytes");
+    std::fs::remove_file(&xodr).unwrap();
+
+    // 1,000,000 points within 200 m of the street: refused by the point budget.
+    std::fs::write(scene.join("scene.json"), &pristine).unwrap();
+    add_lane(&scene, (0..1_000_000).map(|k| serde_json::json!([k as f64 * 0.0002, 0.0, 0.0])).collect());
     refused(carla_gs(&["export-xodr", s(&scene), "--out", s(&xodr)]), &["(id 99)", "1000000 points", "100000"]);
     assert!(!xodr.exists());
 
