@@ -6,10 +6,13 @@
 //! planner plans it ([`plan_inserted`]); the plan marks it (`scenario.json`'s `inserted`, with
 //! its poses), so that every later stage puts it into the scene ([`scene::inserted`]).
 //!
-//! Where it goes ([`slots`]): on the ego's own logged path (its lane) or one lane width beside
-//! it ([`crate::behavior::LANE_WIDTH`]), ahead or behind by a headway, in traffic from the log's
-//! first frame; an oncoming car on the other side coming from beyond the cameras' range; a parked
-//! car at the kerb. A lane beside the ego must exist ([`crate::insert_check::lane_supported`]):
+//! Where it goes ([`slots`]): on the ego's own logged path (its lane) or in a lane beside it (the
+//! lanes logged traffic drove in, else one [`crate::behavior::LANE_WIDTH`] over), ahead or behind
+//! at every gap of the behaviour's range (2 m apart, the behaviour's usual headway first: a free
+//! gap between logged cars is what a real street offers), in traffic from the log's first frame;
+//! an oncoming car in a lane oncoming traffic uses, coming from beyond the cameras' range; a
+//! parked car in a free spot of either kerb. At most [`MAX_PLACEMENTS`] admissible places are
+//! kept. A lane beside the ego must exist ([`crate::insert_check::lane_supported`]):
 //! a map lane heading the right way, or, without a map, logged traffic that drove there (lanes
 //! inferred from the traffic). The inserted box, grown by [`CLEARANCE_M`], overlaps no logged
 //! road user nor the ego at any frame up to t0 ([`crate::insert_check::first_overlap`]); what
@@ -19,7 +22,7 @@
 
 use crate::behavior::LANE_WIDTH;
 use crate::frenet::LanePath;
-use crate::insert_check::{first_overlap, lane_supported, oncoming_side, traffic, Support};
+use crate::insert_check::{first_overlap, lane_supported, oncoming_side, traffic, traffic_lanes, Seen, Support};
 use crate::world::World;
 use crate::{agents, Outcome, ReasonOptions};
 use scene::glam::DVec2;
@@ -68,6 +71,10 @@ pub const CLEARANCE_M: f64 = 0.5;
 const EXTEND_M: f64 = 400.0;
 /// Lateral offset of a parked car's centre from its lane's centre (m).
 const KERB_OFFSET_M: f64 = 0.5 * LANE_WIDTH + 1.4;
+/// Spacing of the gaps tried along a lane (m).
+const GAP_STEP_M: f64 = 2.0;
+/// Most admissible placements kept (each a copy of the scene, each planned in turn).
+pub const MAX_PLACEMENTS: usize = 8;
 /// Slowest an inserted oncoming car drives (m/s).
 const MIN_ONCOMING_SPEED: f64 = 8.0;
 
@@ -120,49 +127,85 @@ fn ego_path(world: &World) -> Option<(LanePath, Vec<f64>)> {
     Some((path, s))
 }
 
+/// Gaps from `lo` to `hi` m every [`GAP_STEP_M`], nearest `preferred` first: a free gap between
+/// logged cars is what a real street offers, so the search walks the whole range.
+fn gaps(lo: f64, hi: f64, preferred: f64) -> Vec<f64> {
+    let n = ((hi - lo) / GAP_STEP_M).floor().max(0.0) as usize;
+    let mut g: Vec<f64> = (0..=n).map(|k| lo + GAP_STEP_M * k as f64).collect();
+    g.sort_by(|a, b| (a - preferred).abs().total_cmp(&(b - preferred).abs()));
+    g
+}
+
+/// The lateral offsets of the lanes beside the ego's: the lanes the logged traffic shows
+/// ([`traffic_lanes`], busiest first) where the behaviours' positions accept them (one lane over:
+/// 1.8 to 5.4 m), then one lane width to each side (the same-direction side first).
+fn beside_offsets(side: f64, seen: &[Seen]) -> Vec<f64> {
+    let shown =
+        traffic_lanes(seen, false).into_iter().filter(|d| (0.5 * LANE_WIDTH..1.5 * LANE_WIDTH).contains(&d.abs()));
+    merged(shown.collect(), [side * -LANE_WIDTH, side * LANE_WIDTH])
+}
+
+/// `first`, then each of `then` not within 0.5 m of one already there.
+fn merged(mut first: Vec<f64>, then: impl IntoIterator<Item = f64>) -> Vec<f64> {
+    for d in then {
+        if first.iter().all(|o| (o - d).abs() > 0.5) {
+            first.push(d);
+        }
+    }
+    first
+}
+
 /// The places tried for behaviour `b`, in order (nearest the behaviour's usual geometry first).
-fn slots(world: &World, b: Behavior, left_oncoming: bool) -> Vec<Slot> {
+fn slots(world: &World, b: Behavior, left_oncoming: bool, seen: &[Seen], max_gap: f64) -> Vec<Slot> {
     let v = world.ego_now.speed().max(3.0);
     let side = if left_oncoming { 1.0 } else { -1.0 };
-    let both = [side * -LANE_WIDTH, side * LANE_WIDTH]; // the same-direction side first
     let follow = |d: f64, gaps: &[f64], lane: &'static str| -> Vec<Slot> {
         gaps.iter().map(|&gap| Slot { d, motion: Motion::Follow { gap }, entry: Entry::InTraffic, lane }).collect()
     };
     let beside = |gaps: &[f64]| -> Vec<Slot> {
-        both.iter()
-            .flat_map(|&d| follow(d, gaps, if d > 0.0 { "the lane to the left" } else { "the lane to the right" }))
+        beside_offsets(side, seen)
+            .into_iter()
+            .flat_map(|d| follow(d, gaps, if d > 0.0 { "the lane to the left" } else { "the lane to the right" }))
             .collect()
     };
     match b {
         Behavior::SuddenBraking | Behavior::LeadSwerve => {
-            let gaps: Vec<f64> = [1.2, 1.6, 2.2, 3.0].iter().map(|h| (h * v).clamp(10.0, 60.0)).collect();
-            follow(0.0, &gaps, "the ego's lane")
+            follow(0.0, &gaps(8.0, max_gap.min(60.0), (1.6 * v).clamp(10.0, 40.0)), "the ego's lane")
         }
-        Behavior::SuddenCutIn => beside(&[8.0, 12.0, 17.0, 24.0]),
+        Behavior::SuddenCutIn => beside(&gaps(4.0, 30.0, 12.0)),
         Behavior::RearTailgating => {
-            let gaps: Vec<f64> = [1.2, 1.8, 2.5].iter().map(|h| -(h * v).clamp(10.0, 50.0)).collect();
-            follow(0.0, &gaps, "the ego's lane")
+            follow(0.0, &gaps(-max_gap.min(50.0), -8.0, -(1.5 * v).clamp(10.0, 40.0)), "the ego's lane")
         }
-        Behavior::SidePass => beside(&[-10.0, -15.0, -22.0]),
-        Behavior::BlindSpotAppearance => beside(&[-7.0, -10.0, -14.0]),
-        Behavior::SuddenStart => [22.0, 28.0, 35.0, 45.0]
-            .iter()
-            .map(|&gap| Slot {
-                d: -side * KERB_OFFSET_M,
-                motion: Motion::Parked { gap },
-                entry: Entry::Parked,
-                lane: "the kerb",
-            })
-            .collect(),
+        Behavior::SidePass => beside(&gaps(-30.0, -8.0, -15.0)),
+        Behavior::BlindSpotAppearance => beside(&gaps(-20.0, -5.0, -10.0)),
+        // A parking spot every 3 m of kerb from 21 m ahead (the behaviour starts at least 20 m
+        // ahead) to the candidate radius, as real kerbs are lined with parked cars and a gap
+        // between two is what there is: the near kerb, the far kerb, then a car stopped in the
+        // lane beside (waiting to turn, say).
+        Behavior::SuddenStart => {
+            let gaps = gaps(21.0, max_gap, 21.0);
+            let at = |d: f64, entry: Entry, lane: &'static str| {
+                gaps.iter().map(move |&gap| Slot { d, motion: Motion::Parked { gap }, entry, lane })
+            };
+            at(-side * KERB_OFFSET_M, Entry::Parked, "the kerb")
+                .chain(at(side * (LANE_WIDTH + KERB_OFFSET_M), Entry::Parked, "the far kerb"))
+                .chain(at(-side * LANE_WIDTH, Entry::InTraffic, "the lane beside, stopped"))
+                .collect()
+        }
         Behavior::OpposingDrift => {
             let speed = world.ego_now.speed().max(MIN_ONCOMING_SPEED);
-            [3.0, 4.0, 5.5]
-                .iter()
-                .map(|&h| Slot {
-                    d: side * LANE_WIDTH,
-                    motion: Motion::Oncoming { gap: h * (v + speed), speed },
-                    entry: Entry::FromAfar,
-                    lane: "the oncoming lane",
+            // The oncoming lanes the traffic shows, within the behaviour's three lanes, first.
+            let shown = traffic_lanes(seen, true).into_iter().filter(|d| d.abs() < 3.0 * LANE_WIDTH - 0.3);
+            let lanes = merged(shown.collect(), [side * LANE_WIDTH]);
+            lanes
+                .into_iter()
+                .flat_map(|d| {
+                    [3.0, 3.5, 4.0, 4.75, 5.5].into_iter().map(move |h| Slot {
+                        d,
+                        motion: Motion::Oncoming { gap: h * (v + speed), speed },
+                        entry: Entry::FromAfar,
+                        lane: "the oncoming lane",
+                    })
                 })
                 .collect()
         }
@@ -207,13 +250,21 @@ pub fn placements(scene: &Scene, o: &ReasonOptions) -> Vec<Placement> {
     let seen = traffic(&world, &path);
     let left_oncoming = oncoming_side(&world, &path, &seen).unwrap_or(true);
     let mut out = Vec::new();
-    for slot in slots(&world, b, left_oncoming) {
+    // A car ahead counts as a candidate within the radius of the ego's position at t0.
+    for slot in slots(&world, b, left_oncoming, &seen, o.radius - 3.0) {
+        if out.len() >= MAX_PLACEMENTS {
+            break;
+        }
         let poses = poses(&world, &path, &ego_s, &slot, size[2]);
         let reverse = matches!(slot.motion, Motion::Oncoming { .. });
-        let parked = matches!(slot.motion, Motion::Parked { .. });
+        let parked = slot.entry == Entry::Parked;
         let support = lane_supported(&world, &path, &seen, &poses, slot.d, reverse, parked);
-        let Support::Yes(how) = support else { continue };
-        if first_overlap(&world, &poses, size, CLEARANCE_M).is_some() {
+        let Support::Yes(how) = support else {
+            tracing::debug!(lane = slot.lane, d = slot.d, motion = ?slot.motion, "insertion slot: no lane there");
+            continue;
+        };
+        if let Some((who, t)) = first_overlap(&world, &poses, size, CLEARANCE_M) {
+            tracing::debug!(lane = slot.lane, motion = ?slot.motion, who, t, "insertion slot: overlaps a road user");
             continue;
         }
         let lane = format!("{} ({how})", slot.lane);

@@ -146,6 +146,29 @@ fn lanes_beside_the_ego_come_from_the_map_or_the_traffic() {
     assert!(plan.inserted.is_some());
 }
 
+#[test]
+fn the_lane_is_where_the_traffic_drove_and_a_gap_between_cars_is_found() {
+    // Logged traffic drove a lane 4.7 m to the left (a wide street: not the 3.6 m grid), going
+    // the ego's way: the inserted cut-in car is put in that lane.
+    let earlier = track("earlier", [4.5, 2.0, 1.5], 0.0, |t| DVec2::new(-80.0 + 14.0 * t, 4.7));
+    let found = placements(&road(vec![earlier]), &options(Behavior::SuddenCutIn, InsertMode::Always));
+    assert!(!found.is_empty(), "a lane at 4.7 m");
+    assert!(found.iter().all(|p| (p.inserted.poses[20].y - 4.7).abs() < 0.2), "{:?}", found[0].inserted.poses[20]);
+    // Two cars following the ego 14 and 26 m behind in its lane (a queue): the tailgater fits
+    // only in the gap between them or behind the second, never on either.
+    let a = track("a", [4.5, 2.0, 1.5], 0.0, |t| DVec2::new(EGO_SPEED * t - 14.0, 0.0));
+    let b = track("b", [4.5, 2.0, 1.5], 0.0, |t| DVec2::new(EGO_SPEED * t - 26.0, 0.0));
+    let found = placements(&road(vec![a, b]), &options(Behavior::RearTailgating, InsertMode::Always));
+    assert!(!found.is_empty(), "the queue leaves room behind it");
+    for p in &found {
+        let behind = 20.0 - p.inserted.poses[20].x;
+        assert!(
+            (behind - 14.0).abs() > 5.5 && (behind - 26.0).abs() > 5.5 && behind > 5.0,
+            "{behind} m behind overlaps the queue"
+        );
+    }
+}
+
 /// A city's map (issue 53): a 50 km road boundary and 20,000 short lanes on a 10 km grid, the
 /// ego's road among them: planned on, not refused for its size.
 #[test]
