@@ -115,6 +115,9 @@ pub fn spec(b: Behavior) -> BehaviorSpec {
     BehaviorSpec { behavior: b, description, zones, ttc_min, ttc_max, end_policy }
 }
 
+/// How far behind the ego (m, centre to centre) a car in an adjacent lane may start a cut-in.
+pub const MERGE_BEHIND_M: f64 = 15.0;
+
 /// Where a vehicle is relative to the ego at t0 (ego frame), and how it is oriented.
 #[derive(Clone, Copy, Debug)]
 pub struct Relation {
@@ -224,9 +227,11 @@ pub fn candidate_zones(world: &World, v: &Vehicle, b: Behavior) -> Result<Vec<Zo
             Ok(vec![Zone::Front])
         }
         SuddenCutIn => {
+            // A car up to MERGE_BEHIND_M behind may overtake and cut in: merge gaps are found on
+            // both adjacent lanes, behind the ego too (the trajectory limits decide who can).
             ok(
-                x > -half_l && r.lane.abs() == 1 && r.same_direction(),
-                "not beside or ahead in an adjacent lane heading the ego's way",
+                x > -MERGE_BEHIND_M && r.lane.abs() == 1 && r.same_direction(),
+                "not beside, ahead or up to 15 m behind in an adjacent lane heading the ego's way",
             )?;
             Ok(vec![Zone::Front])
         }

@@ -18,6 +18,24 @@ pub const EXTEND_M: f64 = 60.0;
 /// allocating ([`crate::budget`] refuses such maps up front).
 pub const MAX_LENGTH_M: f64 = 2.0e6;
 
+/// Segments per box of [`LanePath::frenet`]'s pruning.
+const CHUNK: usize = 32;
+/// Rounding allowance of that pruning (m): a segment is skipped only when it is farther than this
+/// beyond the best `|d|` found.
+const BOUND_SLACK_M: f64 = 1e-6;
+
+/// Distance from `p` to the box `[min, max]` (0 inside).
+fn box_distance([lo, hi]: [DVec2; 2], p: DVec2) -> f64 {
+    (lo - p).max(p - hi).max(DVec2::ZERO).length()
+}
+
+/// Distance from `p` to the segment `a`-`b`.
+fn chord_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
+    let e = b - a;
+    let u = if e.length_squared() > 0.0 { ((p - a).dot(e) / e.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    p.distance(a + e * u)
+}
+
 /// A smooth reference path along chained lane centrelines.
 #[derive(Clone, Debug)]
 pub struct LanePath {
@@ -28,6 +46,8 @@ pub struct LanePath {
     tangent: Vec<DVec2>,
     /// Map ids of the lanes chained, in driving order.
     pub lane_ids: Vec<i64>,
+    /// Bounding box (min, max) of each run of [`CHUNK`] segments ([`LanePath::frenet`]).
+    boxes: Vec<[DVec2; 2]>,
 }
 
 impl LanePath {
@@ -77,7 +97,16 @@ impl LanePath {
         let m = ext.len();
         let tangent =
             (0..m).map(|k| (ext[(k + 1).min(m - 1)] - ext[k.saturating_sub(1)]).normalize()).collect::<Vec<DVec2>>();
-        tangent.iter().all(|t| t.is_finite()).then_some(LanePath { pts: ext, s, tangent, lane_ids })
+        let boxes = ext
+            .windows(2)
+            .collect::<Vec<_>>()
+            .chunks(CHUNK)
+            .map(|c| {
+                let pts = c.iter().flat_map(|w| [w[0], w[1]]);
+                pts.fold([DVec2::INFINITY, DVec2::NEG_INFINITY], |[lo, hi], q| [lo.min(q), hi.max(q)])
+            })
+            .collect();
+        tangent.iter().all(|t| t.is_finite()).then_some(LanePath { pts: ext, s, tangent, lane_ids, boxes })
     }
 
     pub fn length(&self) -> f64 {
@@ -105,44 +134,31 @@ impl LanePath {
     }
 
     /// Frenet `(s, d)` of world point `p` (the nearest foot point; exact inverse of [`Self::world`]).
+    ///
+    /// At a foot point `p - foot` is along the normal, so `|d| = |p - foot|`, and the foot lies on
+    /// the segment's chord: no segment farther from `p` than the best `|d|` found can hold a
+    /// better one. The nearest chunk of [`CHUNK`] segments gives that bound first; then every
+    /// segment within it is solved in index order, as a plain scan would (same answer, ties to
+    /// the first), while the rest of a city-long path is skipped by its chunks' boxes.
     pub fn frenet(&self, p: DVec2) -> DVec2 {
+        let segments = self.pts.len() - 1;
+        let chunk_of = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(segments);
+        let nearest = (0..self.boxes.len())
+            .min_by(|a, b| box_distance(self.boxes[*a], p).total_cmp(&box_distance(self.boxes[*b], p)));
+        let mut bound = f64::INFINITY;
+        if let Some(c) = nearest {
+            let mut near = (f64::INFINITY, DVec2::ZERO);
+            chunk_of(c).for_each(|i| self.foot_on(i, p, &mut near));
+            bound = near.0 + BOUND_SLACK_M;
+        }
         let mut best = (f64::INFINITY, DVec2::ZERO);
-        for i in 0..self.pts.len() - 1 {
-            let (a, e) = (self.pts[i], self.pts[i + 1] - self.pts[i]);
-            let (t0, dt) = (self.tangent[i], self.tangent[i + 1] - self.tangent[i]);
-            // (p - a - u e) . (t0 + u dt) = 0, a quadratic in u.
-            let q = p - a;
-            let (qa, qb, qc) = (-e.dot(dt), q.dot(dt) - e.dot(t0), q.dot(t0));
-            let mut roots = Vec::with_capacity(2);
-            if qa.abs() < 1e-12 {
-                if qb.abs() > 1e-12 {
-                    roots.push(-qc / qb);
-                }
-            } else {
-                let disc = qb * qb - 4.0 * qa * qc;
-                if disc >= 0.0 {
-                    let r = disc.sqrt();
-                    roots.extend([(-qb + r) / (2.0 * qa), (-qb - r) / (2.0 * qa)]);
-                }
+        for (c, b) in self.boxes.iter().enumerate() {
+            if box_distance(*b, p) > bound {
+                continue;
             }
-            // Two Newton steps polish the root (the quadratic formula loses digits).
-            let polish = |mut u: f64| {
-                for _ in 0..2 {
-                    let r = q - e * u;
-                    let g = r.dot(t0 + dt * u);
-                    let dg = -e.dot(t0 + dt * u) + r.dot(dt);
-                    if dg.abs() > 1e-12 {
-                        u -= g / dg;
-                    }
-                }
-                u
-            };
-            for u in roots.into_iter().map(polish).filter(|u| (-1e-9..=1.0 + 1e-9).contains(u)) {
-                let s = self.s[i] + u.clamp(0.0, 1.0) * (self.s[i + 1] - self.s[i]);
-                let foot = a + e * u;
-                let d = (p - foot).dot(t0.lerp(self.tangent[i + 1], u).normalize().perp());
-                if d.abs() < best.0 {
-                    best = (d.abs(), DVec2::new(s, d));
+            for i in chunk_of(c) {
+                if chord_distance(self.pts[i], self.pts[i + 1], p) <= bound {
+                    self.foot_on(i, p, &mut best);
                 }
             }
         }
@@ -153,6 +169,48 @@ impl LanePath {
         let k = (0..self.pts.len()).min_by(|a, b| self.pts[*a].distance(p).total_cmp(&self.pts[*b].distance(p)));
         let k = k.unwrap_or(0);
         DVec2::new(self.s[k], (p - self.pts[k]).dot(self.tangent[k].perp()))
+    }
+
+    /// The foot points of `p` on segment `i` (where `p - foot` is normal to the interpolated
+    /// tangent), each kept in `best` (`|d|`, Frenet point) when nearer than what it holds.
+    fn foot_on(&self, i: usize, p: DVec2, best: &mut (f64, DVec2)) {
+        let (a, e) = (self.pts[i], self.pts[i + 1] - self.pts[i]);
+        let (t0, dt) = (self.tangent[i], self.tangent[i + 1] - self.tangent[i]);
+        // (p - a - u e) . (t0 + u dt) = 0, a quadratic in u.
+        let q = p - a;
+        let (qa, qb, qc) = (-e.dot(dt), q.dot(dt) - e.dot(t0), q.dot(t0));
+        let mut roots = [f64::NAN; 2];
+        if qa.abs() < 1e-12 {
+            if qb.abs() > 1e-12 {
+                roots[0] = -qc / qb;
+            }
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc >= 0.0 {
+                let r = disc.sqrt();
+                roots = [(-qb + r) / (2.0 * qa), (-qb - r) / (2.0 * qa)];
+            }
+        }
+        // Two Newton steps polish the root (the quadratic formula loses digits).
+        let polish = |mut u: f64| {
+            for _ in 0..2 {
+                let r = q - e * u;
+                let g = r.dot(t0 + dt * u);
+                let dg = -e.dot(t0 + dt * u) + r.dot(dt);
+                if dg.abs() > 1e-12 {
+                    u -= g / dg;
+                }
+            }
+            u
+        };
+        for u in roots.into_iter().filter(|u| !u.is_nan()).map(polish).filter(|u| (-1e-9..=1.0 + 1e-9).contains(u)) {
+            let s = self.s[i] + u.clamp(0.0, 1.0) * (self.s[i + 1] - self.s[i]);
+            let foot = a + e * u;
+            let d = (p - foot).dot(t0.lerp(self.tangent[i + 1], u).normalize().perp());
+            if d.abs() < best.0 {
+                *best = (d.abs(), DVec2::new(s, d));
+            }
+        }
     }
 
     /// Frenet rates `(s', d')` of a world velocity `v` at Frenet `(s, d)`: along and across the
@@ -177,5 +235,46 @@ impl LanePath {
         let t = self.tangent(f.x);
         let scale = ((self.world(f.x + h, f.y) - self.world(f.x - h, f.y)) / (2.0 * h)).dot(t);
         (t, if scale > 1e-6 { scale } else { 1.0 })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The plain scan over every segment that the pruned [`LanePath::frenet`] must equal.
+    fn scan(path: &LanePath, p: DVec2) -> Option<DVec2> {
+        let mut best = (f64::INFINITY, DVec2::ZERO);
+        (0..path.pts.len() - 1).for_each(|i| path.foot_on(i, p, &mut best));
+        best.0.is_finite().then_some(best.1)
+    }
+
+    #[test]
+    fn pruned_frenet_equals_the_plain_scan_bit_for_bit() {
+        // A winding 3 km road that passes near itself (an S and a hairpin), points anywhere
+        // within 40 m of it, on it, and at its joins.
+        let raw: Vec<DVec2> = (0..3000)
+            .map(|k| {
+                let t = k as f64;
+                DVec2::new(t * 0.3 + 60.0 * (t / 300.0).sin(), 80.0 * (t / 450.0).sin() + 0.002 * t * t / 10.0)
+            })
+            .collect();
+        let path = LanePath::from_points(raw, vec![]).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut checked = 0;
+        for _ in 0..600 {
+            let s = rng.random_range(0.0..path.length());
+            let d = rng.random_range(-40.0..40.0);
+            let p = path.world(s, d);
+            for q in [p, path.pts[rng.random_range(0..path.pts.len())]] {
+                if let Some(want) = scan(&path, q) {
+                    let got = path.frenet(q);
+                    assert_eq!((got.x.to_bits(), got.y.to_bits()), (want.x.to_bits(), want.y.to_bits()), "{q:?}");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked}");
     }
 }

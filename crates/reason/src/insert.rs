@@ -172,7 +172,7 @@ fn slots(world: &World, b: Behavior, left_oncoming: bool, seen: &[Seen], max_gap
         Behavior::SuddenBraking | Behavior::LeadSwerve => {
             follow(0.0, &gaps(8.0, max_gap.min(60.0), (1.6 * v).clamp(10.0, 40.0)), "the ego's lane")
         }
-        Behavior::SuddenCutIn => beside(&gaps(4.0, 30.0, 12.0)),
+        Behavior::SuddenCutIn => beside(&gaps(-14.0, 30.0, 12.0)),
         Behavior::RearTailgating => {
             follow(0.0, &gaps(-max_gap.min(50.0), -8.0, -(1.5 * v).clamp(10.0, 40.0)), "the ego's lane")
         }

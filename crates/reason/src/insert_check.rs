@@ -112,7 +112,7 @@ pub fn traffic_lanes(seen: &[Seen], oncoming: bool) -> Vec<f64> {
         }
         last = x;
     }
-    clusters.sort_by(|a, b| b.1.cmp(&a.1));
+    clusters.sort_by_key(|c| std::cmp::Reverse(c.1));
     clusters.into_iter().map(|(sum, n)| sum / n as f64).collect()
 }
 
