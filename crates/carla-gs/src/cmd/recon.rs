@@ -95,6 +95,7 @@ pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> 
 }
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {
+    super::out_dir::check_not_inside(&a.out, &[&a.scene])?;
     match a.device {
         Device::Cpu => train_on(a, CpuF32),
         Device::CpuF64 => train_on(a, Cpu),
