@@ -56,6 +56,24 @@ fn demo_never_replaces_a_persons_folder() {
 }
 
 #[test]
+fn a_demo_killed_part_way_is_still_ours() {
+    // As a demo killed while training leaves it: the marker written first, a stage or two.
+    let t = tempfile::tempdir().unwrap();
+    let out = t.path().join("demo-out");
+    std::fs::create_dir_all(out.join("model")).unwrap();
+    std::fs::write(out.join("demo.json"), br#"{"format": "carla-gs-demo/1", "complete": false}"#).unwrap();
+    // The --out check passes (with or without --force); the missing --input is what is refused.
+    let missing = t.path().join("no-such-log");
+    for extra in [&[][..], &["--force"]] {
+        let args = [&["demo", "--out", s(&out), "--input", s(&missing)][..], extra].concat();
+        let r = carla_gs(&args);
+        let err = String::from_utf8_lossy(&r.stderr).into_owned();
+        refused(r, &["--input", "not a folder"]);
+        assert!(!err.contains("not a demo output"), "{err}");
+    }
+}
+
+#[test]
 fn demo_out_inside_its_input_is_refused() {
     let t = tempfile::tempdir().unwrap();
     let scene = synth(t.path());

@@ -1,5 +1,5 @@
-//! Issue 56, "a user's files lost or mixed": `eval-cases`, `ablate` and `batch plan` overwrote
-//! same-named files of a person's (`summary.md`, `table3.md`, `plan.json`); now each is refused
+//! Issue 56, "a user's files lost or mixed": `eval-cases`, `tables`, `ablate` and `batch plan`
+//! overwrote same-named files of a person's (`summary.md`, `table3.md`, `plan.json`); now each is refused
 //! with exit 2 naming the folder or file, and the person's files are listed unchanged after.
 //! `eval-cases` killed part-way left a partial `cases/` (or, over a finished run, old tables
 //! beside half of the new case files); its output is now built beside `--out` and swapped in at
@@ -116,6 +116,22 @@ fn eval_cases_killed_at_any_moment_leaves_old_or_new_never_mixed() {
         ok(eval_cases(&scene, &out, &["--force", "--seed", seed]).output().unwrap());
         assert!(std::fs::read_to_string(out.join("report.json")).unwrap().contains(&format!("\"seed\": {seed}")));
     }
+}
+
+#[test]
+fn tables_never_overwrite_a_persons_summary() {
+    let t = tempfile::tempdir().unwrap();
+    let scene = synth(t.path());
+    let shard = t.path().join("shard");
+    ok(eval_cases(&scene, &shard, &["--shard", "0/1"]).output().unwrap());
+    let out = t.path().join("mine");
+    a_persons_folder(&out, "summary.md");
+    let before = listing(t.path());
+    refused(carla_gs(&["tables", s(&shard), "--no-plots", "--out", s(&out)]), &[s(&out), "summary.md"]);
+    assert_eq!(listing(t.path()), before);
+    // Into the shards' own directory (ours), as before.
+    ok(carla_gs(&["tables", s(&shard), "--no-plots", "--out", s(&shard)]));
+    assert!(shard.join("summary.md").is_file());
 }
 
 #[test]
