@@ -94,6 +94,22 @@ fn eval_cases_killed_before_the_swap_leaves_the_old_output_and_a_rerun_completes
 }
 
 #[test]
+fn eval_cases_over_what_an_older_killed_run_left_completes() {
+    let t = tempfile::tempdir().unwrap();
+    let scene = synth(t.path());
+    let done = t.path().join("done");
+    ok(eval_cases(&scene, &done, &[]).output().unwrap());
+    // Killed part-way, in place: some case files, no tables.
+    let out = t.path().join("eval");
+    std::fs::create_dir(&out).unwrap();
+    let status = std::process::Command::new("cp").args(["-r", s(&done.join("cases")), s(&out)]).status().unwrap();
+    assert!(status.success());
+    refused(eval_cases(&scene, &out, &[]).output().unwrap(), &[s(&out), "--force"]);
+    ok(eval_cases(&scene, &out, &["--force"]).output().unwrap());
+    assert!(out.join("summary.md").is_file() && out.join("report.json").is_file());
+}
+
+#[test]
 fn eval_cases_killed_at_any_moment_leaves_old_or_new_never_mixed() {
     let t = tempfile::tempdir().unwrap();
     let scene = synth(t.path());

@@ -21,7 +21,7 @@ pub const EVAL_OUT: Kind =
     Kind { what: "an eval-cases output", marker: "report.json or shard-I-of-N.json", ours: is_eval_out };
 
 fn is_eval_out(dir: &Path) -> bool {
-    if scene::format::read_json::<cases::Report>(&dir.join("report.json")).is_ok() {
+    if scene::format::read_json::<cases::Report>(&dir.join("report.json")).is_ok() || is_partial_eval_out(dir) {
         return true;
     }
     let Ok(rd) = std::fs::read_dir(dir) else { return false };
@@ -31,6 +31,28 @@ fn is_eval_out(dir: &Path) -> bool {
             && name.ends_with(".json")
             && scene::has_format_marker(dir, &name, cases::shard::RECORD_FORMAT)
     })
+}
+
+/// What an eval-cases run killed part-way by an older carla-gs (which wrote in place) leaves:
+/// a `cases/` of case directories (each with `case.json`, and only the files a case writes),
+/// perhaps beside tables of ours, and nothing else.
+fn is_partial_eval_out(dir: &Path) -> bool {
+    const TOP: [&str; 4] = ["cases", "summary.md", "why_no_plan.md", "report.json"];
+    let table = |n: &str| n.starts_with("table") && [".md", ".csv", ".png"].iter().any(|x| n.ends_with(x));
+    let Ok(rd) = std::fs::read_dir(dir) else { return false };
+    let top_ok = rd.flatten().all(|e| {
+        let n = e.file_name().to_string_lossy().into_owned();
+        TOP.contains(&n.as_str()) || table(&n) || (n.starts_with('.') && n.ends_with(".tmp"))
+    });
+    let cases = dir.join("cases");
+    let Ok(rd) = std::fs::read_dir(&cases) else { return false };
+    let cases_ok = rd.flatten().all(|e| {
+        let Ok(files) = std::fs::read_dir(e.path()) else { return false };
+        let files: Vec<String> = files.flatten().map(|f| f.file_name().to_string_lossy().into_owned()).collect();
+        files.iter().any(|f| f == "case.json")
+            && files.iter().all(|f| CASE_FILES.contains(&f.as_str()) || (f.starts_with('.') && f.ends_with(".tmp")))
+    });
+    top_ok && cases_ok
 }
 
 /// Checks `out` before any work (see the module's header).
