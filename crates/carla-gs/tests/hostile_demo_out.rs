@@ -103,7 +103,12 @@ fn no_command_writes_its_out_inside_its_input() {
     let inside = scene.join("out");
     let run_out = model.join("r");
     let before = listing(t.path());
-    let commands: [&[&str]; 5] = [
+    let (episode, replaced) = (scene.join("episode"), model.join("replaced"));
+    let drive = ["drive", s(&model), "--model", s(&model), "--scene", s(&scene), "--policy", "log", "--out"];
+    let commands: [&[&str]; 8] = [
+        &[&drive[..], &[s(&episode)]].concat(),
+        &["eval-drive", s(&model), "--scene", s(&scene), "--out", s(&episode)],
+        &["replace", s(&model), "--track", "t", "--asset", "a", "--out", s(&replaced), "--force"],
         &["ingest", s(&scene), "--out", s(&inside), "--force"],
         &["train", s(&scene), "--out", s(&inside), "--iters", "1"],
         &["ablate", s(&scene), "--out", s(&inside), "--iters", "1"],
