@@ -58,6 +58,6 @@ for protocol in ${PROTOCOLS:-ours paper}; do
     echo "== eval-cases --protocol $protocol $EVAL"
     # shellcheck disable=SC2086 # EVAL is a list of arguments
     /usr/bin/time -f "eval-cases --protocol $protocol: %e s" $bin eval-cases "${EVAL_SCENES:-$scene}" --agents openai "${openai[@]:2}" --protocol "$protocol" $EVAL \
-      --out "$out/eval_$protocol" 2>&1 | tee "$out/eval_$protocol.log" || true
+      --out "$out/eval_$protocol" --force 2>&1 | tee "$out/eval_$protocol.log" || true
   fi
 done

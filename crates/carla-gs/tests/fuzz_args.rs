@@ -59,7 +59,8 @@ fn numeric_flags_exit_0_2_or_3() {
     type Run<'a> = (Vec<&'a str>, &'a str, Vec<&'a str>, &'a str, &'a [i32]);
     let (o_ev, o_bench) = (out("ev"), out("bench.json"));
     let eval = vec!["eval-cases", s(&scene), "--agents", "planner", "--behaviors", "sudden_cut_in", "--no-plots"];
-    let eval: Vec<&str> = eval.into_iter().chain(["--out", &o_ev]).collect();
+    // Each run replaces the last one's output (ours), which takes --force (issue 56).
+    let eval: Vec<&str> = eval.into_iter().chain(["--out", &o_ev, "--force"]).collect();
     let bench_splat = vec!["bench-splat", "--cases", "10x8x8", "--out", &o_bench];
     let mut runs: Vec<Run> = vec![
         (render.clone(), "--frame", vec![], "0", &[0, 2]),

@@ -91,9 +91,15 @@ pub struct StageTime {
     pub cached: bool,
 }
 
+/// `demo.json`'s `format`: what marks a demo's `--out` as ours (written when the demo starts).
+pub const DEMO_FORMAT: &str = "carla-gs-demo/1";
+
 /// What the demo produced (`demo.json`; the report is drawn from it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct DemoResult {
+    /// [`DEMO_FORMAT`].
+    #[serde(default)]
+    pub format: String,
     pub config: DemoConfig,
     pub out: PathBuf,
     pub recon: recon::eval::EvalReport,
@@ -178,6 +184,12 @@ pub fn run_demo_on<B: Backend + Clone>(
 ) -> Result<DemoResult, PipelineError> {
     let clock = Instant::now();
     std::fs::create_dir_all(out).map_err(PipelineError::io(out))?;
+    // Marked as ours before anything else is written, so that a demo killed part-way is
+    // recognised (and continued from its cache) by the next run.
+    let marker = out.join("demo.json");
+    if std::fs::symlink_metadata(&marker).is_err() {
+        scene::write_file_atomic(&marker, json!({"format": DEMO_FORMAT, "complete": false}).to_string().as_bytes())?;
+    }
     let mut stages = Stages { timings: vec![], progress };
     let scene_dir = out.join("scene");
     let synth_cfg = synth::SynthConfig {
@@ -361,6 +373,7 @@ pub fn run_demo_on<B: Backend + Clone>(
     };
 
     let mut result = DemoResult {
+        format: DEMO_FORMAT.into(),
         config: cfg.clone(),
         out: out.to_path_buf(),
         recon,

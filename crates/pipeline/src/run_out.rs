@@ -2,9 +2,12 @@
 //! built in a staging directory beside its destination and moved in at the end, so a failed run
 //! leaves the destination as it was. The destination must be absent, empty or one of our run
 //! directories (`run.json` with our format marker, or holding only names a run writes); inside
-//! ours, `videos/` and `placement/` must hold only files a run writes, since the old outputs are
-//! removed before the new ones move in. Anything else of a person's is refused, never deleted;
-//! other files at the top of a run directory are left alone.
+//! ours, `videos/` and `placement/` must hold only the files the earlier run recorded in its
+//! `run.json` (`files`, and each video's `<layout>.mp4` or `<layout>_frames/`), since the old
+//! outputs are removed before the new ones move in. Anything else of a person's is refused,
+//! never deleted (a run has no `--force`); other files at the top of a run directory are left
+//! alone. While the new outputs move in, [`JOURNAL`] lists the old and new ones, so a run killed
+//! part-way is still recognised as ours by the next.
 
 use crate::PipelineError;
 use std::path::{Path, PathBuf};
@@ -23,8 +26,47 @@ pub const OUTPUTS: [&str; 10] = [
     "videos",
 ];
 
-/// Names the demo's stage cache keeps beside a run's outputs.
-const ALSO_OURS: [&str; 1] = [crate::cache::MARKER];
+/// Lists, while a run moves in, every path under `videos/` and `placement/` of the old and new
+/// runs (removed once `run.json` is in).
+pub const JOURNAL: &str = ".carla-gs-run-commit.json";
+
+/// Names the demo's stage cache keeps beside a run's outputs, and the commit's journal.
+const ALSO_OURS: [&str; 2] = [crate::cache::MARKER, JOURNAL];
+
+/// The paths under `videos/` and `placement/` that the run in `out` recorded as its own (in
+/// `run.json`, and in the journal of a commit that did not finish).
+fn recorded(out: &Path) -> std::collections::BTreeSet<String> {
+    let mut set = std::collections::BTreeSet::new();
+    let read = |name: &str| scene::format::read_json::<serde_json::Value>(&out.join(name)).ok();
+    if let Some(run) =
+        read("run.json").filter(|_| scene::owned::has_format_marker(out, "run.json", crate::run::RUN_FORMAT))
+    {
+        let strings = |v: Option<&serde_json::Value>| {
+            v.and_then(|f| f.as_array())
+                .into_iter()
+                .flatten()
+                .filter_map(|x| x.as_str().map(String::from))
+                .collect::<Vec<_>>()
+        };
+        set.extend(strings(run.get("files")));
+        for v in run.get("videos").and_then(|v| v.as_array()).into_iter().flatten() {
+            if let Some(layout) = v.get("layout").and_then(|l| l.as_str()) {
+                set.insert(format!("videos/{layout}.mp4"));
+                set.insert(format!("videos/{layout}_frames"));
+            }
+        }
+    }
+    if let Some(j) = read(JOURNAL) {
+        set.extend(
+            j.get("files")
+                .and_then(|f| f.as_array())
+                .into_iter()
+                .flatten()
+                .filter_map(|x| x.as_str().map(String::from)),
+        );
+    }
+    set
+}
 
 fn refuse(path: &Path, detail: impl std::fmt::Display) -> PipelineError {
     PipelineError::stage("--out", format!("{}: {detail}; nothing was written", path.display()))
@@ -41,20 +83,24 @@ fn names(dir: &Path) -> Result<Vec<(String, PathBuf)>, PipelineError> {
 }
 
 /// The first path at or under `path` (named `name`, under `sub`: `videos` or `placement`) that a
-/// run does not write, if any.
-fn foreign_inside(sub: &str, name: &str, path: &Path) -> Result<Option<PathBuf>, PipelineError> {
+/// run did not write (not in `ours`, [`recorded`]), if any.
+fn foreign_inside(
+    sub: &str,
+    name: &str,
+    path: &Path,
+    ours: &std::collections::BTreeSet<String>,
+) -> Result<Option<PathBuf>, PipelineError> {
+    let rel = format!("{sub}/{name}");
     let file = path.is_file();
-    let ours = match sub {
-        "placement" => file && name.starts_with('t') && name.ends_with(".png"),
-        _ if name.starts_with('.') && name.ends_with(".tmp") => true,
-        // The videos and their MinTTC stills (`run::Climax`).
-        _ if file => name.ends_with(".mp4") || name.ends_with("-minttc.png"),
-        _ if name.ends_with("_frames") && path.is_dir() => {
+    let ok = match sub {
+        "placement" => file && ours.contains(&rel),
+        _ if file => ours.contains(&rel),
+        _ if name.ends_with("_frames") && path.is_dir() && ours.contains(&rel) => {
             return Ok(render::clip_out::foreign_in_frames_dir(path)?.map(|n| path.join(n)));
         }
         _ => false,
     };
-    Ok((!ours).then(|| path.to_path_buf()))
+    Ok((!ok).then(|| path.to_path_buf()))
 }
 
 /// Refuses `out` unless a run may write there (see the module's header).
@@ -76,21 +122,38 @@ pub fn check_out(out: &Path) -> Result<(), PipelineError> {
             ),
         ));
     }
+    let ours = recorded(out);
     for sub in ["videos", "placement"] {
         let dir = out.join(sub);
-        if !dir.exists() {
+        if std::fs::symlink_metadata(&dir).is_err() {
             continue;
         }
         if !dir.is_dir() {
             return Err(refuse(&dir, "is not a directory a run writes"));
         }
         for (name, path) in names(&dir)? {
-            if let Some(foreign) = foreign_inside(sub, &name, &path)? {
-                return Err(refuse(&foreign, "was not written by a run and would be removed with the old outputs"));
+            if let Some(foreign) = foreign_inside(sub, &name, &path, &ours)? {
+                return Err(refuse(
+                    &foreign,
+                    "was not written by the run in this directory (not in its run.json) and would be removed \
+                     with the old outputs; move it away",
+                ));
             }
         }
     }
     Ok(())
+}
+
+/// The paths under `videos/` and `placement/` of the run staged in `dir`.
+fn staged_paths(dir: &Path) -> Result<Vec<String>, PipelineError> {
+    let mut v = Vec::new();
+    for sub in ["videos", "placement"] {
+        let d = dir.join(sub);
+        if d.is_dir() {
+            v.extend(names(&d)?.into_iter().map(|(n, _)| format!("{sub}/{n}")));
+        }
+    }
+    Ok(v)
 }
 
 /// A run under construction beside its destination.
@@ -135,6 +198,10 @@ impl StagedRun {
         }
         // Checked again: the directory may have changed while the case ran.
         check_out(&self.dest)?;
+        let mut journal: Vec<String> = recorded(&self.dest).into_iter().collect();
+        journal.extend(staged_paths(self.staged.path())?);
+        let j = serde_json::json!({"format": "carla-gs-run-commit/1", "files": journal});
+        scene::write_file_atomic(&self.dest.join(JOURNAL), j.to_string().as_bytes())?;
         for name in OUTPUTS {
             let p = self.dest.join(name);
             let r = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
@@ -151,6 +218,8 @@ impl StagedRun {
             std::fs::rename(&from, &to).map_err(PipelineError::io(&to))?;
             moved(&name);
         }
+        let j = self.dest.join(JOURNAL);
+        std::fs::remove_file(&j).map_err(PipelineError::io(&j))?;
         Ok(())
     }
 }
@@ -172,7 +241,9 @@ mod tests {
         std::fs::write(d.join("notes.txt"), b"mine").unwrap();
         let e = check_out(&d).unwrap_err().to_string();
         assert!(e.contains("not a run directory"), "{e}");
-        std::fs::write(d.join("run.json"), format!(r#"{{"format": "{}"}}"#, crate::run::RUN_FORMAT)).unwrap();
+        let run = r#"{"format": "carla-gs-run/1", "files": ["videos/front3-minttc.png", "placement/t1.00_FRONT.png"],
+            "videos": [{"layout": "front3"}]}"#;
+        std::fs::write(d.join("run.json"), run).unwrap();
         check_out(&d).unwrap();
         std::fs::create_dir_all(d.join("videos/front3_frames")).unwrap();
         std::fs::write(d.join("videos/front3_frames/frame_000000.png"), b"png").unwrap();
@@ -181,7 +252,10 @@ mod tests {
         std::fs::create_dir(d.join("placement")).unwrap();
         std::fs::write(d.join("placement/t1.00_FRONT.png"), b"png").unwrap();
         check_out(&d).unwrap();
-        for foreign in ["videos/notes.txt", "placement/keep.txt", "videos/front3_frames/IMPORTANT.txt"] {
+        // A video or picture by a run's names, but not this run's, is a person's (issue 56).
+        let foreign =
+            ["videos/notes.txt", "placement/keep.txt", "videos/front3_frames/IMPORTANT.txt", "videos/holiday.mp4"];
+        for foreign in foreign.into_iter().chain(["placement/t2.00_FRONT.png", "videos/compare-FRONT.mp4"]) {
             std::fs::write(d.join(foreign), b"keep").unwrap();
             let e = check_out(&d).unwrap_err().to_string();
             assert!(e.contains(foreign.rsplit('/').next().unwrap()), "{e}");
@@ -194,7 +268,8 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let d = root.path().join("run");
         std::fs::create_dir_all(d.join("videos")).unwrap();
-        std::fs::write(d.join("run.json"), format!(r#"{{"format": "{}"}}"#, crate::run::RUN_FORMAT)).unwrap();
+        let old = format!(r#"{{"format": "{}", "files": ["videos/old.mp4"]}}"#, crate::run::RUN_FORMAT);
+        std::fs::write(d.join("run.json"), old).unwrap();
         std::fs::write(d.join("scenario.json"), b"old").unwrap();
         std::fs::write(d.join("videos/old.mp4"), b"old").unwrap();
         std::fs::write(d.join("README.txt"), b"a person's notes").unwrap();
@@ -226,5 +301,21 @@ mod tests {
         drop(s);
         assert!(!d.join("scenario.json").exists());
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1, "no staging left");
+    }
+
+    #[test]
+    fn a_commit_killed_part_way_is_still_ours() {
+        let root = tempfile::tempdir().unwrap();
+        let d = root.path().join("run");
+        // Old outputs removed, new video moved in, run.json not yet: the journal names it.
+        std::fs::create_dir_all(d.join("videos")).unwrap();
+        std::fs::write(d.join("videos/front3.mp4"), b"new").unwrap();
+        assert!(check_out(&d).is_err(), "without a record the video is not ours");
+        std::fs::write(d.join(JOURNAL), r#"{"format": "carla-gs-run-commit/1", "files": ["videos/front3.mp4"]}"#)
+            .unwrap();
+        check_out(&d).unwrap();
+        std::fs::write(d.join("videos/holiday.mp4"), b"mine").unwrap();
+        let e = check_out(&d).unwrap_err().to_string();
+        assert!(e.contains("holiday.mp4"), "{e}");
     }
 }

@@ -4,6 +4,9 @@
 //!   place, so that a killed run can be continued with `--resume`; a run that fails removes it.
 //! - `--resume` of an unfinished run trains in place after removing the temporary files a killed
 //!   run left in it (`.*.tmp`, `.tmp*`); nothing else reads them.
+//! - A run killed before its first checkpoint leaves only our `config.toml` (and perhaps
+//!   temporaries): nothing was trained, so any run into it (plain, `--resume` or `--force`)
+//!   starts afresh in place ([`is_unstarted_run`]); no clean-up by hand is needed.
 //! - An existing model (or unfinished run) is replaced only with `--force` (`ForceMode::Replace`)
 //!   and only if it is ours (`model.json` of our format, or a `checkpoint.bin` with our magic);
 //!   the new model is built in a staging directory beside it and renamed over it in one step at
@@ -46,8 +49,31 @@ pub fn is_model_dir(dir: &Path) -> bool {
         .is_ok_and(|_| crate::checkpoint::has_magic(&magic))
 }
 
+/// Whether `dir` is a training run killed before its first checkpoint: a real directory holding
+/// our `config.toml` (it reads as a training config) and nothing else but temporary files.
+pub fn is_unstarted_run(dir: &Path) -> bool {
+    if !std::fs::symlink_metadata(dir).is_ok_and(|m| m.is_dir()) {
+        return false;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return false };
+    let mut config = false;
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        match name.as_str() {
+            "config.toml" => config = e.file_type().is_ok_and(|t| t.is_file()),
+            n if is_temporary(n) && e.file_type().is_ok_and(|t| t.is_file()) => {}
+            _ => return false,
+        }
+    }
+    config && crate::model_io::load_config(dir).is_ok()
+}
+
 /// Decides where a run into `out` writes. `resume` runs continue `out`'s checkpoint.
 pub fn plan(out: &Path, resume: bool, force: ForceMode) -> Result<WorkDir, ReconError> {
+    if is_unstarted_run(out) {
+        remove_stray_temporaries(out);
+        return Ok(WorkDir::InPlace { dir: out.to_path_buf(), created: false });
+    }
     let exists = std::fs::symlink_metadata(out).is_ok();
     if resume {
         if !out.is_dir() {
@@ -109,9 +135,13 @@ fn remove_stray_temporaries(dir: &Path) {
     let Ok(entries) = std::fs::read_dir(dir) else { return };
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if name.starts_with(".tmp") || (name.starts_with('.') && name.ends_with(".tmp")) {
+        if is_temporary(&name) {
             let p = e.path();
             let _ = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
         }
     }
+}
+
+fn is_temporary(name: &str) -> bool {
+    name.starts_with(".tmp") || (name.starts_with('.') && name.ends_with(".tmp"))
 }

@@ -98,7 +98,8 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     }
     let loaded = scene::load_scene(req.scene_dir)?;
     let run = resume::identity(req.scene_dir, &loaded, &cfg)?;
-    let resumed = match req.resume {
+    // A run killed before its first checkpoint has nothing to resume: it starts afresh.
+    let resumed = match req.resume && !crate::out_dir::is_unstarted_run(req.out_dir) {
         true => Some(resume::open(req.out_dir, &cfg, &run, &loaded)?),
         false => None,
     };

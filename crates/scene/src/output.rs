@@ -41,9 +41,12 @@ pub fn write_file_atomic_with(
     Ok(())
 }
 
-/// A directory under construction. Dropping it without [`StagedDir::commit`] deletes it.
+/// A directory under construction. Dropping it without [`StagedDir::commit`] deletes it. The
+/// content is built in `out/` of a marked staging directory (`owned::STAGING_MARK`), so that a
+/// killed run's leftovers are provably ours and the output itself carries no mark.
 pub struct StagedDir {
     staging: tempfile::TempDir,
+    content: PathBuf,
     dest: PathBuf,
 }
 
@@ -62,17 +65,15 @@ impl StagedDir {
         let parent = parent_dir(dest);
         std::fs::create_dir_all(&parent).map_err(|e| SceneError::io(&parent, e))?;
         crate::owned::remove_stale_staging(dest);
-        let staging = tempfile::Builder::new()
-            .prefix(&crate::owned::staging_prefix(dest))
-            .suffix(".tmp")
-            .tempdir_in(&parent)
-            .map_err(|e| SceneError::io(&parent, e))?;
-        Ok(Self { staging, dest: dest.to_path_buf() })
+        let staging = crate::owned::marked_dir(dest, &crate::owned::staging_prefix(dest))?;
+        let content = staging.path().join("out");
+        std::fs::create_dir(&content).map_err(|e| SceneError::io(&content, e))?;
+        Ok(Self { staging, content, dest: dest.to_path_buf() })
     }
 
     /// Where to write the directory's contents now.
     pub fn path(&self) -> &Path {
-        self.staging.path()
+        &self.content
     }
 
     pub fn dest(&self) -> &Path {
@@ -82,32 +83,36 @@ impl StagedDir {
     /// Moves the finished directory into place, replacing an old one (only if `overwrite`
     /// was given to `new`; the old one is moved aside first and removed after the rename).
     pub fn commit(self) -> Result<PathBuf, SceneError> {
-        let staged = self.staging.keep();
+        let staged = &self.content;
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            let _ = std::fs::set_permissions(&staged, std::fs::Permissions::from_mode(0o755));
+            let _ = std::fs::set_permissions(staged, std::fs::Permissions::from_mode(0o755));
         }
+        // The old output goes into a marked directory of its own (never a bare rename to a name a
+        // person's file may have), removed once the new one is in place.
         let mut old = None;
         if self.dest.exists() {
-            let aside = parent_dir(&self.dest).join(format!(".{}.old-{}", file_name(&self.dest), std::process::id()));
-            std::fs::rename(&self.dest, &aside).map_err(|e| SceneError::io(&self.dest, e))?;
-            old = Some(aside);
+            let aside = crate::owned::marked_dir(&self.dest, &crate::owned::aside_prefix(&self.dest))?;
+            let inside = aside.path().join("old");
+            std::fs::rename(&self.dest, &inside).map_err(|e| SceneError::io(&self.dest, e))?;
+            old = Some((aside, inside));
         }
-        if let Err(e) = std::fs::rename(&staged, &self.dest) {
-            if let Some(aside) = &old {
-                let _ = std::fs::rename(aside, &self.dest);
+        if let Err(e) = std::fs::rename(staged, &self.dest) {
+            if let Some((_, inside)) = &old {
+                let _ = std::fs::rename(inside, &self.dest);
             }
-            let _ = std::fs::remove_dir_all(&staged);
             return Err(SceneError::io(&self.dest, e));
         }
         // The new output is in place: a failure to delete the old one is not a failure of the
         // command (it would say "nothing was written" over a written output), only a warning.
-        if let Some(aside) = old {
-            if let Err(e) = std::fs::remove_dir_all(&aside) {
-                eprintln!("warning: {}: old output not removed: {e}", aside.display());
+        if let Some((aside, _)) = old {
+            let path = aside.path().to_path_buf();
+            if let Err(e) = aside.close() {
+                eprintln!("warning: {}: old output not removed: {e}", path.display());
             }
         }
+        let _ = self.staging.close();
         Ok(self.dest)
     }
 }

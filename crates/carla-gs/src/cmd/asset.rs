@@ -237,6 +237,7 @@ pub fn replace(a: ReplaceArgs) -> anyhow::Result<()> {
         "--out {}: is the input model directory; write the replaced model elsewhere",
         a.out.display()
     );
+    super::out_dir::check_not_inside(&a.out, &[&a.model])?;
     // The new model is built beside --out and renamed into place whole.
     let marker = "model.json of format carla-gs-model/1 or a carla-gs checkpoint.bin";
     scene::check_replaceable(&a.out, a.force, "a model directory", marker, recon::out_dir::is_model_dir)?;

@@ -18,6 +18,9 @@ pub struct PlanArgs {
     manifest: PathBuf,
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing <out>/plan.json (only one of ours: a batch plan).
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(clap::Args)]
@@ -36,10 +39,12 @@ pub struct ExecArgs {
 pub fn run(c: Command) -> anyhow::Result<()> {
     match c {
         Command::Plan(a) => {
+            let file = a.out.join(plan::PLAN_FILE);
+            let ours = scene::has_format_marker(&a.out, plan::PLAN_FILE, plan::PLAN_FORMAT);
+            super::out_dir::check_out_file_in(&file, a.force, "a batch plan", ours)?;
             let m = Manifest::read(&a.manifest)?;
             pipeline::batch::checks::inputs_exist(&m, &a.manifest)?;
             let p = plan::build(&m, &a.manifest, &a.out)?;
-            let file = a.out.join(plan::PLAN_FILE);
             scene::format::write_json_pretty(&file, &p)?;
             let mut per_stage = String::new();
             for s in &p.stages {

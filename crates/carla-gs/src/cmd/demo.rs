@@ -2,12 +2,17 @@
 //! (`pipeline::demo`), on the synthetic street or on a real log (`pipeline::real_log`, whose
 //! adversaries are replaced by the log's own well-seen vehicles where a case needs it,
 //! `pipeline::auto_replace`).
+//!
+//! `--out` is new, empty, or a demo's own (`demo.json` of our format, written as the demo
+//! starts): anything else is refused, with or without `--force`, and never inside, equal to or
+//! holding `--input`. An earlier demo's `--out` is continued from its cache; with `--force` a
+//! fresh demo is built beside it and swapped in whole at the end.
 
 use super::recon::{open_cuda, Device};
 use indicatif::{ProgressBar, ProgressStyle};
 use pipeline::demo::{run_demo_on, DemoConfig, DemoProgress};
 use recon::backend::{Cpu, CpuF32};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -38,6 +43,19 @@ pub struct Args {
     /// into <out>/assets and no automatic replacement (--replace still applies).
     #[arg(long)]
     no_auto_replace: bool,
+    /// Rebuild an earlier demo's --out from scratch (only one of ours: demo.json of format
+    /// carla-gs-demo/1); the old one stays until the new one is complete.
+    #[arg(long)]
+    force: bool,
+}
+
+/// A demo's output: `demo.json` of our format (or a whole earlier result).
+const DEMO_OUT: super::out_dir::Kind =
+    super::out_dir::Kind { what: "a demo output", marker: "demo.json of format carla-gs-demo/1", ours: is_demo_out };
+
+fn is_demo_out(dir: &Path) -> bool {
+    scene::has_format_marker(dir, "demo.json", pipeline::demo::DEMO_FORMAT)
+        || scene::format::read_json::<pipeline::demo::DemoResult>(&dir.join("demo.json")).is_ok()
 }
 
 struct Terminal;
@@ -59,6 +77,9 @@ impl DemoProgress for Terminal {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let inputs: Vec<&Path> = a.input.iter().map(|p| p.as_path()).collect();
+    // Ours is continued (or, with --force, rebuilt); anything else is refused.
+    super::out_dir::check_replaceable(&a.out, &inputs, true, &DEMO_OUT)?;
     let mut cfg = match &a.input {
         None => DemoConfig::default(),
         Some(input) => {
@@ -84,11 +105,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.no_auto_replace {
         cfg.auto_replace = None;
     }
-    let r = match a.device {
-        Device::Cpu => run_demo_on(&CpuF32, &cfg, &a.out, &Terminal)?,
-        Device::CpuF64 => run_demo_on(&Cpu, &cfg, &a.out, &Terminal)?,
-        Device::Cuda => run_demo_on(&open_cuda()?, &cfg, &a.out, &Terminal)?,
+    let staged = match a.force {
+        true => Some(super::out_dir::stage(&a.out, &inputs, true, &DEMO_OUT)?),
+        false => None,
     };
+    let out = staged.as_ref().map_or(a.out.as_path(), |s| s.path());
+    let mut r = match a.device {
+        Device::Cpu => run_demo_on(&CpuF32, &cfg, out, &Terminal)?,
+        Device::CpuF64 => run_demo_on(&Cpu, &cfg, out, &Terminal)?,
+        Device::Cuda => run_demo_on(&open_cuda()?, &cfg, out, &Terminal)?,
+    };
+    if let Some(staged) = staged {
+        // demo.json names the directory it will be in.
+        r.out = a.out.clone();
+        scene::format::write_json_pretty(&staged.path().join("demo.json"), &r)?;
+        staged.commit()?;
+    }
     println!("stage                          seconds");
     for t in &r.timings {
         println!("{:<30} {:>8.1}{}", t.stage, t.seconds, if t.cached { "  (cached)" } else { "" });

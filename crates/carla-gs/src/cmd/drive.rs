@@ -160,6 +160,7 @@ fn with_draw<T>(
 }
 
 pub fn run(a: DriveArgs) -> anyhow::Result<()> {
+    super::out_dir::check_not_inside(&a.out, &[&a.run_dir, &a.common.scene, &a.model])?;
     let spec = policy_spec(&a.policy, &a.command, a.common.policy_timeout)?;
     drive::output::check_out(&a.out, a.common.force)?;
     let scene = scene::load_scene(&a.common.scene)?;
@@ -213,6 +214,10 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
         .iter()
         .map(|n| policy_spec(n, &a.command, a.common.policy_timeout))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut inputs: Vec<&std::path::Path> = a.run_dirs.iter().map(|p| p.as_path()).collect();
+    inputs.push(&a.common.scene);
+    inputs.extend(a.model.as_deref());
+    super::out_dir::check_not_inside(&a.out, &inputs)?;
     let shard = a.shard.as_deref().map(drive::eval::parse_shard).transpose()?;
     let scene = scene::load_scene(&a.common.scene)?;
     let settings = settings(&a.common, &scene)?;

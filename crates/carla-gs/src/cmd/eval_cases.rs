@@ -1,4 +1,8 @@
-//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --horizon 5 --after-plan stop [--shard I/N] --out <dir>`
+//! `carla-gs eval-cases <scene_dir>... --agents ... --behaviors all --t0 every:1s --horizon 5 --after-plan stop [--shard I/N] --out <dir> [--force]`
+//!
+//! `--out` is new, empty, or an earlier eval-cases output; the results are built in a staging
+//! directory beside it and moved in at the end, so a killed run leaves `--out` as it was
+//! (`eval_out`).
 use cases::runner::CaseConfig;
 use cases::spec::{AgentName, T0Spec};
 use cases::EvalConfig;
@@ -22,6 +26,10 @@ pub struct Args {
     t0: String,
     #[arg(long)]
     out: PathBuf,
+    /// Replace an earlier eval-cases output at --out (report.json or shard-I-of-N.json there),
+    /// whole; a folder of anything else is refused.
+    #[arg(long)]
+    force: bool,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Evaluation horizon for every agent: seconds from t0 (clipped at the log's end), or `plan`
@@ -61,6 +69,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> = a.scenes.iter().map(|p| p.as_path()).collect();
+    super::eval_out::check(&a.out, &inputs, a.force, a.shard)?;
     let mut dirs = Vec::new();
     for d in &a.scenes {
         dirs.extend(scene::format::find_scene_dirs(d)?);
@@ -126,12 +136,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(d) = &a.describe.describe {
         cli_settings.insert("describe".into(), d.clone());
     }
+    // Checked again now that the scenes have loaded, and staged: built whole beside --out.
+    let staged = super::eval_out::stage(&a.out, &inputs, a.force, a.shard)?;
     let cfg = EvalConfig {
         agents,
         behaviors,
         t0,
         seed: a.seed,
-        out: a.out.clone(),
+        out: staged.path().to_path_buf(),
         plots: !a.no_plots,
         case: CaseConfig {
             reason: reason_opts,
@@ -172,6 +184,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let pb = super::progress::count_bar("cases");
     let report = cases::run_eval_in(&universe, &scenes, &cfg, &factory, &pb).map_err(super::eval_error)?;
     pb.finish_and_clear();
+    if std::env::var("CARLA_GS_TEST_ABORT").as_deref() == Ok("before-commit") {
+        std::process::abort();
+    }
+    super::eval_out::commit(staged, a.shard)?;
     if let Some(shard) = a.shard {
         println!(
             "shard {shard}: {} attempts x {} agents; wrote {}/{} and cases/ (merge the shards with `carla-gs tables <dirs> --out <dir>`)",

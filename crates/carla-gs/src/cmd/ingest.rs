@@ -35,6 +35,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let inputs: Vec<&std::path::Path> = a.inputs.iter().map(|p| p.as_path()).collect();
+    super::out_dir::check_not_inside(&a.out, &inputs)?;
     let expect = match a.format {
         None => ingest::Expect::Auto,
         Some(Format::Waymo) => ingest::Expect::Frame,

@@ -95,6 +95,7 @@ pub fn priors_of(scene_dir: &Path) -> anyhow::Result<Box<PriorLoader<'static>>> 
 }
 
 pub fn train(a: TrainArgs) -> anyhow::Result<()> {
+    super::out_dir::check_not_inside(&a.out, &[&a.scene])?;
     match a.device {
         Device::Cpu => train_on(a, CpuF32),
         Device::CpuF64 => train_on(a, Cpu),
@@ -329,14 +330,30 @@ pub struct AblateArgs {
     scene: PathBuf,
     #[arg(long)]
     out: PathBuf,
+    /// Replace an earlier ablation at --out (table3.json there), whole; a folder of anything
+    /// else is refused.
+    #[arg(long)]
+    force: bool,
     #[command(flatten)]
     settings: Settings,
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
 }
 
+/// An ablation's output: `table3.json`, a list of rows.
+const ABLATE_OUT: super::out_dir::Kind =
+    super::out_dir::Kind { what: "an ablation output", marker: "table3.json", ours: is_ablate_out };
+
+fn is_ablate_out(dir: &Path) -> bool {
+    scene::format::read_json::<Vec<serde_json::Value>>(&dir.join("table3.json"))
+        .is_ok_and(|rows| rows.iter().all(|r| r.get("train_seconds").is_some() && r.get("eval").is_some()))
+}
+
 pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
     let cfg = a.settings.config()?;
+    // Built whole beside --out and swapped in at the end (`out_dir`).
+    let staged = super::out_dir::stage(&a.out, &[&a.scene], a.force, &ABLATE_OUT)?;
+    let out = staged.path().to_path_buf();
     let priors = priors_of(&a.scene)?;
     let bar = |name: &str| {
         let pb = ProgressBar::new(0);
@@ -347,13 +364,14 @@ pub fn ablate(a: AblateArgs) -> anyhow::Result<()> {
         pb
     };
     let rows = match a.device {
-        Device::Cpu => recon::ablate::ablate(&CpuF32, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
-        Device::CpuF64 => recon::ablate::ablate(&Cpu, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
-        Device::Cuda => recon::ablate::ablate(&open_cuda()?, &a.scene, &a.out, &cfg, priors.as_ref(), &bar)?,
+        Device::Cpu => recon::ablate::ablate(&CpuF32, &a.scene, &out, &cfg, priors.as_ref(), &bar)?,
+        Device::CpuF64 => recon::ablate::ablate(&Cpu, &a.scene, &out, &cfg, priors.as_ref(), &bar)?,
+        Device::Cuda => recon::ablate::ablate(&open_cuda()?, &a.scene, &out, &cfg, priors.as_ref(), &bar)?,
     };
     let md = recon::ablate::markdown(&rows, cfg.iterations);
-    scene::write_file_atomic(&a.out.join("table3.md"), md.as_bytes())?;
-    scene::format::write_json_pretty(&a.out.join("table3.json"), &rows)?;
+    scene::write_file_atomic(&out.join("table3.md"), md.as_bytes())?;
+    scene::format::write_json_pretty(&out.join("table3.json"), &rows)?;
+    staged.commit()?;
     print!("{md}");
     println!("-> {}", a.out.join("table3.md").display());
     Ok(())

@@ -113,6 +113,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         a.refine_rounds,
         cases::runner::MAX_REFINE_ROUNDS
     );
+    super::out_dir::check_not_inside(&a.out, &[&a.scene, &a.model])?;
     let scene = scene::load_scene(&a.scene)?;
     let (mut model, _) = recon::model_io::load_model_for_scene(&a.model, &a.scene, &scene)?;
     a.replace.apply(&mut model, &a.scene, &a.model)?;

@@ -1,6 +1,8 @@
 //! `carla-gs tables <dir>... --out <dir>`: merges the outputs of `eval-cases --shard I/N` runs
 //! into the tables one run over all attempts writes (`cases::merge`); refuses missing or
-//! duplicated shards and shards run with other settings.
+//! duplicated shards and shards run with other settings. `--out` is new, empty or an eval-cases
+//! output of ours (it may be the shards' own directory); a person's folder is refused, so that
+//! its `summary.md` or `report.json` is never overwritten.
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -17,6 +19,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    super::out_dir::check_replaceable(&a.out, &[], true, &super::eval_out::EVAL_OUT)?;
     let report = cases::merge::merge(&a.dirs)?;
     std::fs::create_dir_all(&a.out).map_err(|e| anyhow::anyhow!("{}: {e}", a.out.display()))?;
     cases::report::write(&a.out, &report, !a.no_plots)?;

@@ -17,7 +17,7 @@ const FORMATS: [&str; 5] = ["waymo", "womd", "kitti-odometry", "transforms-json"
 const PLAN_FLAGS: [(&str, &[&str]); 4] = [
     ("priors", &["--force"]),
     ("train", &["--out", "--force", "--device", "--config", "--iters", "--scale", "--seed"]),
-    ("eval_cases", &["--shard", "--out", "--agents", "--behaviors", "--t0", "--horizon", "--seed"]),
+    ("eval_cases", &["--shard", "--out", "--force", "--agents", "--behaviors", "--t0", "--horizon", "--seed"]),
     ("run", &["--out", "--model", "--behavior", "--agent", "--seed"]),
 ];
 

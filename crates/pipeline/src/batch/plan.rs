@@ -8,7 +8,7 @@
 //! | `ingest` | one per log with `input` | `ingest <input>... --out <out>/scenes/<log> --force` | - |
 //! | `priors` | one per log | `priors <scene> --force` | its ingest |
 //! | `train` | one per log | `train <scene> --out <out>/models/<log> --force --device ...` | its ingest, priors |
-//! | `eval_cases` | one per shard | `eval-cases <every scene> --shard I/N --out <out>/eval/shard-I-of-N` | every ingest |
+//! | `eval_cases` | one per shard | `eval-cases <every scene> --shard I/N --out <out>/eval/shard-I-of-N --force` | every ingest |
 //! | `tables` | one | `tables <every shard dir> --out <out>/tables` | every shard |
 //! | `run` | one per log and behaviour | `run <scene> --model <model> --behavior B --out <out>/runs/<log>/<B>` | its train |
 //!
@@ -214,7 +214,8 @@ pub fn build(manifest: &Manifest, manifest_file: &Path, out: &Path) -> Result<Pl
             let r = Resources::from(&e.resources, 1, 0, 4.0);
             let mut args = vec!["eval-cases".to_string()];
             args.extend(scenes.iter().map(|(_, d, _)| s(d)));
-            args.extend(["--shard".into(), format!("{i}/{n}"), "--out".into(), s(&dir)]);
+            // A node that runs again (changed inputs) replaces its own earlier shard output.
+            args.extend(["--shard".into(), format!("{i}/{n}"), "--out".into(), s(&dir), "--force".into()]);
             for (flag, val) in
                 [("--agents", &e.agents), ("--behaviors", &e.behaviors), ("--t0", &e.t0), ("--horizon", &e.horizon)]
             {
