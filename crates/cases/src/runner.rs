@@ -191,6 +191,10 @@ pub(crate) fn refine_planner(
 ) -> Option<(Plan, String)> {
     // An inserted adversary is a candidate like a logged one in the scene it was inserted into.
     let scene = &*scene::inserted::with_inserted(scene, last).ok()?;
+    // `--insert always`: the next candidates are the inserted car's own, never a logged car.
+    let only_inserted = o.insert == reason::insert::InsertMode::Always && last.inserted.is_some();
+    let adversary = if only_inserted { Some(last.adversary_track.clone()) } else { o.adversary.clone() };
+    let o = &ReasonOptions { adversary, ..o.clone() };
     let world = World::for_options(scene, &ReasonOptions { t0: last.start_time_s, ..o.clone() })?;
     if r == 1 {
         let target = DVec2::from(last.target?);

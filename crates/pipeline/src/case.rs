@@ -43,6 +43,9 @@ pub struct CaseRequest {
     /// This TTC (s) instead of the behaviour's range.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ttc_s: Option<f64>,
+    /// Whether the planner may insert an adversary (`--insert`; default `fallback`).
+    #[serde(default, skip_serializing_if = "is_fallback")]
+    pub insert: reason::insert::InsertMode,
     pub seed: u64,
     /// Seeds tried at each t0 (`seed`, `seed + 1`, ...): the planner's candidate order and the
     /// LLM's sampling depend on it.
@@ -58,6 +61,10 @@ pub struct CaseRequest {
     /// succeeds.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fallback_window: Option<cases::window::Window>,
+}
+
+fn is_fallback(m: &reason::insert::InsertMode) -> bool {
+    *m == reason::insert::InsertMode::Fallback
 }
 
 /// One case rendered as planned: its own plan end, no continuation after it.
@@ -198,6 +205,7 @@ pub fn select_case_with(
             adversary: req.adversary.clone(),
             zone: req.zone,
             ttc_s: req.ttc_s,
+            insert: req.insert,
             ..ReasonOptions::default()
         },
         rollout: sim::RolloutConfig::default(),

@@ -308,6 +308,7 @@ pub fn run_demo_on<B: Backend + Clone>(
             adversary: None,
             zone: None,
             ttc_s: None,
+            insert: reason::insert::InsertMode::Fallback,
             seed: cfg.seed,
             seeds_per_t0: 3,
             refine_rounds: 3,

@@ -17,6 +17,7 @@ fn request(behavior: Behavior, fallback: Option<Window>) -> CaseRequest {
         adversary: None,
         zone: None,
         ttc_s: None,
+        insert: Default::default(),
         seed: 0,
         seeds_per_t0: 3,
         refine_rounds: 3,
@@ -66,4 +67,25 @@ fn the_second_window_is_not_searched_once_the_first_succeeds() {
     let last = sel.attempts.last().unwrap();
     assert!(last.valid && last.zone_hit && last.success, "{last:?}");
     assert_eq!(sel.chosen.expect("a case").2, rendered_window());
+}
+
+/// `run --insert always` reaches the case search (it was dropped between the command's flags and
+/// the search, which then chose a logged car): on PandaSet 002 the sudden cut-in at t0 = 4 s is
+/// made with a logged car, and with `always` by an inserted car (at some t0 of the log), marked
+/// in the plan.
+#[test]
+fn insert_always_reaches_the_search_on_pandaset() {
+    let Some(src) = ingest::shared::data_path("pandaset/002") else { return };
+    let scene = ingest::read_scenes(&[src], ingest::Expect::Auto, &ProgressBar::hidden()).unwrap().remove(0);
+    let at = T0Choice::At(4.0);
+    let mut req = request(Behavior::SuddenCutIn, None);
+    let logged = select_case(&scene, &req, &at, None);
+    let (result, _, _) = logged.chosen.expect("a logged cut-in at 4 s");
+    assert!(result.best().unwrap().plan.inserted.is_none());
+    req.insert = reason::insert::InsertMode::Always;
+    let inserted = select_case(&scene, &req, &T0Choice::Search(T0Spec::Every(0.5)), None);
+    let (result, _, _) = inserted.chosen.expect(&format!("an inserted cut-in: {:?}", inserted.attempts));
+    eprintln!("inserted cut-in at t0 {:.1} s: {:?}", result.spec.t0_s, result.best().unwrap().metrics.min_ttc_center_s);
+    let plan = &result.best().unwrap().plan;
+    assert!(plan.inserted.is_some() && plan.adversary_track.starts_with("inserted-"), "{}", plan.adversary_track);
 }

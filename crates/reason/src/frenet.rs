@@ -171,6 +171,12 @@ impl LanePath {
         DVec2::new(self.s[k], (p - self.pts[k]).dot(self.tangent[k].perp()))
     }
 
+    /// Whether `p` may lie within `r` of the path: false only when every chunk's box is farther
+    /// (a cheap test before [`Self::frenet`] for points that matter only near the path).
+    pub fn may_be_within(&self, p: DVec2, r: f64) -> bool {
+        self.boxes.iter().any(|b| box_distance(*b, p) <= r)
+    }
+
     /// The foot points of `p` on segment `i` (where `p - foot` is normal to the interpolated
     /// tangent), each kept in `best` (`|d|`, Frenet point) when nearer than what it holds.
     fn foot_on(&self, i: usize, p: DVec2, best: &mut (f64, DVec2)) {

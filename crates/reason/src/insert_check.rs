@@ -26,6 +26,8 @@ const ALONG_M: f64 = 40.0;
 const AROUND_T0_S: f64 = 3.0;
 /// Share of those poses on a map lane.
 const ON_LANE_SHARE: f64 = 0.8;
+/// Logged traffic farther than this from the ego's path (m) says nothing of its lanes.
+const NEAR_PATH_M: f64 = 15.0;
 /// Slower than this over its whole run (m/s), a logged vehicle is parked.
 const PARKED_SPEED: f64 = 0.5;
 
@@ -52,8 +54,11 @@ pub fn traffic(world: &World, path: &LanePath) -> Vec<Seen> {
         let span = scene.frames[b.frame].timestamp_s - scene.frames[a.frame].timestamp_s;
         let parked = a.center.truncate().distance(b.center.truncate()) <= PARKED_SPEED * span.max(1.0);
         for st in valid {
+            if !path.may_be_within(st.center.truncate(), NEAR_PATH_M) {
+                continue;
+            }
             let f = path.frenet(st.center.truncate());
-            if f.y.abs() > 15.0 {
+            if f.y.abs() > NEAR_PATH_M {
                 continue;
             }
             let along = DVec2::from_angle(st.heading).dot(path.tangent(f.x));

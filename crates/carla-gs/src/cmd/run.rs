@@ -163,6 +163,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
         adversary: flags.adversary,
         zone: flags.zone,
         ttc_s: flags.ttc_s,
+        insert: flags.insert,
         seed: a.seed,
         seeds_per_t0: a.seeds_per_t0,
         refine_rounds: a.refine_rounds,

@@ -64,6 +64,7 @@ pub fn case(scene: &Scene, behavior: Behavior) -> Option<Executed> {
         adversary: None,
         zone: None,
         ttc_s: None,
+        insert: Default::default(),
         seed: 0,
         seeds_per_t0: 1,
         refine_rounds: 0,
