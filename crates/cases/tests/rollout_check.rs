@@ -1,6 +1,7 @@
 //! The planner checked by rollouts on real dense traffic (PandaSet 002: a car overtaking the ego
-//! on its left, a queue ahead, parked rows): the unchecked planner's first-ranked cut-ins touch a
-//! third car at several start times, and the checked choice must be valid wherever any candidate
+//! on its left, a queue ahead, parked rows): the unchecked planner's first-ranked cut-ins touched a
+//! third car at several start times (before cut-ins could start from behind the ego), and the
+//! checked choice must be valid wherever any candidate
 //! it may try is (else refused with its reason, never an invalid plan), never worse than the
 //! unchecked one, and say how it was found.
 
@@ -72,5 +73,7 @@ fn checked_cut_ins_on_pandaset_avoid_third_cars() {
     assert_eq!(planned + refused, 6);
     assert!(planned >= 5, "{planned} planned");
     assert_eq!(valid_checked, planned, "a checked plan with an invalid rollout was handed over");
-    assert!(valid_checked > valid_unchecked, "{valid_checked} vs {valid_unchecked} valid");
+    // Since cut-ins may start from behind (issue 53), the first-ranked cut-in here is the car
+    // overtaking on the left, valid at every t0: the check can only match it.
+    assert!(valid_checked >= valid_unchecked, "{valid_checked} vs {valid_unchecked} valid");
 }
