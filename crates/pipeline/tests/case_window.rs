@@ -84,7 +84,7 @@ fn insert_always_reaches_the_search_on_pandaset() {
     assert!(result.best().unwrap().plan.inserted.is_none());
     req.insert = reason::insert::InsertMode::Always;
     let inserted = select_case(&scene, &req, &T0Choice::Search(T0Spec::Every(0.5)), None);
-    let (result, _, _) = inserted.chosen.expect(&format!("an inserted cut-in: {:?}", inserted.attempts));
+    let (result, _, _) = inserted.chosen.unwrap_or_else(|| panic!("an inserted cut-in: {:?}", inserted.attempts));
     eprintln!("inserted cut-in at t0 {:.1} s: {:?}", result.spec.t0_s, result.best().unwrap().metrics.min_ttc_center_s);
     let plan = &result.best().unwrap().plan;
     assert!(plan.inserted.is_some() && plan.adversary_track.starts_with("inserted-"), "{}", plan.adversary_track);
