@@ -7,28 +7,8 @@
 //! files are listed unchanged after.
 
 mod cli_support;
-use cli_support::{carla_gs, ok, refused, s};
+use cli_support::{carla_gs, listing, ok, refused, s};
 use std::path::{Path, PathBuf};
-
-/// Every path under `dir` with its content, sorted.
-fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    fn walk(root: &Path, dir: &Path, v: &mut Vec<(String, Vec<u8>)>) {
-        for e in std::fs::read_dir(dir).unwrap().flatten() {
-            let p = e.path();
-            let rel = p.strip_prefix(root).unwrap().display().to_string();
-            if p.is_dir() {
-                v.push((rel + "/", vec![]));
-                walk(root, &p, v);
-            } else {
-                v.push((rel, std::fs::read(&p).unwrap_or_default()));
-            }
-        }
-    }
-    let mut v = Vec::new();
-    walk(dir, dir, &mut v);
-    v.sort();
-    v
-}
 
 fn synth(t: &Path) -> PathBuf {
     let scene = t.join("scene");

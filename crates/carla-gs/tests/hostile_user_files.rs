@@ -6,29 +6,8 @@
 //! the end, so a kill leaves the old output whole and a re-run completes.
 
 mod cli_support;
-use cli_support::{carla_gs, ok, refused, s};
+use cli_support::{carla_gs, listing, ok, refused, s};
 use std::path::{Path, PathBuf};
-
-/// Every file under `dir` with its content, sorted (what a person would find there).
-fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut v = Vec::new();
-    walk(dir, dir, &mut v);
-    v.sort();
-    v
-}
-
-fn walk(root: &Path, dir: &Path, v: &mut Vec<(String, Vec<u8>)>) {
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        let rel = p.strip_prefix(root).unwrap().display().to_string();
-        if p.is_dir() {
-            v.push((rel + "/", vec![]));
-            walk(root, &p, v);
-        } else {
-            v.push((rel, std::fs::read(&p).unwrap_or_default()));
-        }
-    }
-}
 
 fn synth(t: &Path) -> PathBuf {
     let scene = t.join("scene");
