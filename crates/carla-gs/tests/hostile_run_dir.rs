@@ -6,7 +6,6 @@
 
 mod cli_support;
 use cli_support::{carla_gs, listing, ok, refused, s};
-use std::path::Path;
 
 #[test]
 fn a_run_never_deletes_a_persons_videos() {
