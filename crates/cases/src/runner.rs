@@ -267,30 +267,40 @@ pub fn run_case(
     let fail = |stage: &str, reason: String| {
         (CaseResult { spec: spec.clone(), status: Status::Failed { stage: stage.into(), reason } }, None)
     };
-    let first = match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
-        Err(e) => return fail("reason", e),
-        Ok(Outcome::Rejected { stats, reason }) => {
-            return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
-        }
-        Ok(Outcome::NoFeasible { reason }) => Err(reason),
-        Ok(Outcome::Plan { plan, stats }) => Ok((plan, stats)),
-    };
     // The planner's choice checked by rollouts, also where nothing at t0 itself was feasible
-    // (a later start time or the wider search may be).
-    let checked = if spec.agent == AgentName::Planner && cfg.check_rollouts {
+    // (a later start time or the wider search may be). It searches the agent's candidates (and
+    // insertions) itself, so the agent runs alone only where it chose nothing: for the reason
+    // why, or the unchecked plan.
+    let planner_checked = spec.agent == AgentName::Planner && cfg.check_rollouts;
+    if planner_checked {
+        if let Err(e) = reason::budget::check(scene, &o) {
+            return fail("reason", e.to_string());
+        }
+    }
+    let checked = if planner_checked {
         match crate::choose::choose(scene, &o, cfg) {
-            Ok(c) => Some(c),
+            Ok(Choice::Chosen(c)) => Some((c.plan, None, c.how)),
+            Ok(Choice::Refused(reason)) => {
+                return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
+            }
+            Ok(Choice::NoCandidate) => None,
             Err(e) => return fail("simulate", format!("checking the planner's candidates: {e}")),
         }
     } else {
         None
     };
-    let (mut plan, mut validity, mut how) = match (first, checked) {
-        (_, Some(Choice::Chosen(c))) => (c.plan, None, c.how),
-        (_, Some(Choice::Refused(reason))) | (Err(reason), _) => {
-            return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
-        }
-        (Ok((plan, stats)), _) => (plan, stats, "agent".to_string()),
+    let (mut plan, mut validity, mut how) = match checked {
+        Some(c) => c,
+        None => match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+            Err(e) => return fail("reason", e),
+            Ok(Outcome::Rejected { stats, reason }) => {
+                return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
+            }
+            Ok(Outcome::NoFeasible { reason }) => {
+                return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
+            }
+            Ok(Outcome::Plan { plan, stats }) => (plan, stats, "agent".to_string()),
+        },
     };
     let mut strategy = 1; // the planner's next refinement strategy
     let mut rounds: Vec<Round> = Vec::new();

@@ -106,8 +106,28 @@ fn rows_for(label: &str, cases: &[&CaseResult], agents: &[AgentName]) -> Vec<Ben
         .map(|r| {
             let ai = agents.iter().position(|a| *a == r.agent).unwrap_or(0);
             let mine: Vec<&CaseResult> = cases.iter().copied().filter(|c| c.spec.agent == r.agent).collect();
-            let pick =
-                |c: &CaseResult| if r.variant == tables::REFINED { c.best().cloned() } else { c.first().cloned() };
+            // The split rows (`..., logged adversaries`) count only cases with that kind of adversary.
+            let kind = if r.variant.ends_with(tables::LOGGED_ROWS) {
+                Some(false)
+            } else if r.variant.ends_with(tables::INSERTED_ROWS) {
+                Some(true)
+            } else {
+                None
+            };
+            let any = |c: &CaseResult| {
+                if r.variant.starts_with(tables::REFINED) {
+                    c.best().cloned()
+                } else {
+                    c.first().cloned()
+                }
+            };
+            let pick = |c: &CaseResult| any(c).filter(|x| kind.is_none_or(|k| x.plan.inserted.is_some() == k));
+            // Attempts planned with the other kind of adversary have no plan in this row: say so.
+            let other = kind.map(|k| {
+                let n = mine.iter().filter(|c| any(c).is_some_and(|x| x.plan.inserted.is_some() != k)).count();
+                let what = if k { "planned with a logged adversary" } else { "planned with an inserted adversary" };
+                (what.to_string(), n)
+            });
             let pair = |c: &CaseResult| (c.spec.scene.clone(), format!("{:.3}", c.spec.t0_s));
             let pairs: BTreeSet<_> = mine.iter().map(|c| pair(c)).collect();
             let good: BTreeSet<_> = mine
@@ -130,7 +150,7 @@ fn rows_for(label: &str, cases: &[&CaseResult], agents: &[AgentName]) -> Vec<Ben
                 verified: r.verified_k,
                 pairs: pairs.len(),
                 pairs_verified: good.len(),
-                why_no_plan: why.iter().map(|(c, n)| (c.clone(), n[ai])).filter(|(_, n)| *n > 0).collect(),
+                why_no_plan: why.iter().map(|(c, n)| (c.clone(), n[ai])).chain(other).filter(|(_, n)| *n > 0).collect(),
             }
         })
         .collect()
