@@ -53,8 +53,9 @@ pub enum Choice {
     Chosen(Box<Checked>),
     /// Candidates exist, but every rollout tried is physically invalid: why, in words.
     Refused(String),
-    /// No start time yields a candidate (the planner's own reason stands).
-    NoCandidate,
+    /// No start time yields a candidate (the planner's own reason stands); the insertion's
+    /// placements where they were searched (for that reason, without building them again).
+    NoCandidate(Option<Vec<reason::insert::Placement>>),
 }
 
 /// The opening of a refusal's reason (`paired::why_class` keys on it).
@@ -165,12 +166,14 @@ pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choi
     let mut s =
         Search { scene, cfg, tried: 0, limit: MAX_ROLLOUTS, best: None, best_executed: None, why: BTreeMap::new() };
     let insert = o.adversary.is_none() && o.insert != InsertMode::Never;
+    let mut placed = None;
     if o.adversary.is_some() || o.insert != InsertMode::Always {
         logged(&mut s, o)?;
     }
     if insert && !s.done() {
         s.limit = s.tried + MAX_INSERTED_ROLLOUTS;
-        for p in reason::insert::placements(scene, o) {
+        let all = reason::insert::placements(scene, o);
+        for p in &all {
             if s.done() {
                 break;
             }
@@ -180,10 +183,11 @@ pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choi
             let pass = " (inserted)";
             s.try_all_marked(&world, &o2, 0.0, pass, ranked.iter().enumerate(), Some(&p.inserted))?;
         }
+        placed = Some(all);
     }
     s.pre_compensate(o)?;
     let tried = s.tried;
-    let Some((mut b, rank, off, pass)) = s.best else { return Ok(Choice::NoCandidate) };
+    let Some((mut b, rank, off, pass)) = s.best else { return Ok(Choice::NoCandidate(placed)) };
     if !b.metrics.validity.valid {
         let counts: Vec<String> = s.why.iter().map(|(k, n)| format!("{} {n}", k.replace('_', " "))).collect();
         return Ok(Choice::Refused(format!(

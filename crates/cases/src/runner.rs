@@ -234,6 +234,7 @@ fn reason_once(
     o: &ReasonOptions,
     agent: AgentName,
     backend: Option<&mut dyn Backend>,
+    placed: Option<&[reason::insert::Placement]>,
 ) -> Result<Outcome, String> {
     let a = match (agent, backend) {
         (AgentName::Planner, _) => Agent::Planner,
@@ -242,7 +243,7 @@ fn reason_once(
         (_, Some(b)) => Agent::Llm(b),
         (_, None) => return Err(format!("agent {} needs a backend", agent.as_str())),
     };
-    reason::reason(scene, o, a).map_err(|e| e.to_string())
+    reason::reason_placed(scene, o, a, placed).map_err(|e| e.to_string())
 }
 
 /// Runs one case. `backend` is the LLM for LLM agents.
@@ -279,19 +280,25 @@ pub fn run_case(
     }
     let checked = if planner_checked {
         match crate::choose::choose(scene, &o, cfg) {
-            Ok(Choice::Chosen(c)) => Some((c.plan, None, c.how)),
+            Ok(Choice::Chosen(c)) => Ok((c.plan, None, c.how)),
             Ok(Choice::Refused(reason)) => {
                 return (CaseResult { spec: spec.clone(), status: Status::NoFeasible { reason } }, None)
             }
-            Ok(Choice::NoCandidate) => None,
+            Ok(Choice::NoCandidate(placed)) => Err(placed),
             Err(e) => return fail("simulate", format!("checking the planner's candidates: {e}")),
         }
     } else {
-        None
+        Err(None)
     };
     let (mut plan, mut validity, mut how) = match checked {
-        Some(c) => c,
-        None => match reason_once(scene, &o, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+        Ok(c) => c,
+        Err(placed) => match reason_once(
+            scene,
+            &o,
+            spec.agent,
+            backend.as_mut().map(|b| &mut **b as &mut dyn Backend),
+            placed.as_deref(),
+        ) {
             Err(e) => return fail("reason", e),
             Ok(Outcome::Rejected { stats, reason }) => {
                 return (CaseResult { spec: spec.clone(), status: Status::Rejected { validity: stats, reason } }, None)
@@ -326,7 +333,7 @@ pub fn run_case(
         // Next round's plan: the next strategy that yields one.
         let refined = if spec.agent.is_llm() {
             let o2 = ReasonOptions { feedback: Some(fb), seed: spec.seed.wrapping_add(r as u64 + 1), ..o.clone() };
-            match reason_once(scene, &o2, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend)) {
+            match reason_once(scene, &o2, spec.agent, backend.as_mut().map(|b| &mut **b as &mut dyn Backend), None) {
                 Ok(Outcome::Plan { plan, stats }) => Some((plan, stats, "agent with feedback".to_string())),
                 Ok(Outcome::NoFeasible { .. } | Outcome::Rejected { .. }) => None,
                 Err(e) => return fail("reason", format!("refinement round {}: {e}", r + 1)),

@@ -147,8 +147,16 @@ impl LanePath {
             .min_by(|a, b| box_distance(self.boxes[*a], p).total_cmp(&box_distance(self.boxes[*b], p)));
         let mut bound = f64::INFINITY;
         if let Some(c) = nearest {
+            // Any foot point bounds the answer: first the chunk's segment whose chord is nearest
+            // (one quadratic, not one per segment), the whole chunk where that one has none.
             let mut near = (f64::INFINITY, DVec2::ZERO);
-            chunk_of(c).for_each(|i| self.foot_on(i, p, &mut near));
+            let chord = |i: &usize| chord_distance(self.pts[*i], self.pts[*i + 1], p);
+            if let Some(i) = chunk_of(c).min_by(|a, b| chord(a).total_cmp(&chord(b))) {
+                self.foot_on(i, p, &mut near);
+            }
+            if !near.0.is_finite() {
+                chunk_of(c).for_each(|i| self.foot_on(i, p, &mut near));
+            }
             bound = near.0 + BOUND_SLACK_M;
         }
         let mut best = (f64::INFINITY, DVec2::ZERO);
@@ -157,7 +165,8 @@ impl LanePath {
                 continue;
             }
             for i in chunk_of(c) {
-                if chord_distance(self.pts[i], self.pts[i + 1], p) <= bound {
+                // A chord farther than the best so far (and the slack) holds no better foot.
+                if chord_distance(self.pts[i], self.pts[i + 1], p) <= bound.min(best.0 + BOUND_SLACK_M) {
                     self.foot_on(i, p, &mut best);
                 }
             }

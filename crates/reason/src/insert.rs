@@ -298,12 +298,17 @@ fn track_of(id: &str, ins: &Inserted) -> Track {
 /// The planner on each placement in turn: the first plan, marked inserted; `NoFeasible` with
 /// the reasons when no placement fits or none can be planned.
 pub fn plan_inserted(scene: &Scene, o: &ReasonOptions) -> Outcome {
-    let all = placements(scene, o);
+    plan_placed(&placements(scene, o), o)
+}
+
+/// [`plan_inserted`] on placements already built by [`placements`] for the same scene and options
+/// (a caller that searched them itself need not build them twice).
+pub fn plan_placed(all: &[Placement], o: &ReasonOptions) -> Outcome {
     if all.is_empty() {
         return Outcome::NoFeasible { reason: "no inserted vehicle fits: no lane with room for one".into() };
     }
     let mut why = Vec::new();
-    for p in &all {
+    for p in all {
         let o2 = ReasonOptions { adversary: Some(p.id.clone()), ..o.clone() };
         let Some(world) = World::for_options(&p.scene, &o2) else { continue };
         match agents::run_planner(&world, &o2) {

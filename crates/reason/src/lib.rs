@@ -223,13 +223,28 @@ pub(crate) fn make_plan(
 /// logged road user for the behaviour (or `o.insert` is `always`), it plans an inserted one
 /// ([`insert::plan_inserted`]) unless `o.insert` is `never` or an adversary was named.
 pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome, ReasonError> {
+    reason_placed(scene, o, agent, None)
+}
+
+/// [`reason`] with the insertion's placements already built ([`insert::placements`] of the same
+/// scene and options), or `None` to build them where needed.
+pub fn reason_placed(
+    scene: &Scene,
+    o: &ReasonOptions,
+    agent: Agent,
+    placed: Option<&[insert::Placement]>,
+) -> Result<Outcome, ReasonError> {
     budget::check(scene, o)?;
     let (first, last) = (scene.frames[0].timestamp_s, scene.frames[scene.frames.len() - 1].timestamp_s);
     let world = World::for_options(scene, o).ok_or(ReasonError::TimeOutsideScene { t0: o.t0, first, last })?;
     // The planner inserts (the baselines and the LLM agents choose among the logged road users).
     let may_insert = o.adversary.is_none() && o.behavior.is_some() && matches!(agent, Agent::Planner);
+    let plan_inserted = || match placed {
+        Some(all) => insert::plan_placed(all, o),
+        None => insert::plan_inserted(scene, o),
+    };
     if may_insert && o.insert == insert::InsertMode::Always {
-        return Ok(insert::plan_inserted(scene, o));
+        return Ok(plan_inserted());
     }
     if let Err(reason) = constraints::check(scene, &world, o) {
         return Ok(Outcome::NoFeasible { reason });
@@ -241,7 +256,7 @@ pub fn reason(scene: &Scene, o: &ReasonOptions, agent: Agent) -> Result<Outcome,
         Agent::Random => baselines::random(&world, o),
     };
     if let (Outcome::NoFeasible { reason }, true) = (&out, may_insert && o.insert == insert::InsertMode::Fallback) {
-        out = match insert::plan_inserted(scene, o) {
+        out = match plan_inserted() {
             Outcome::NoFeasible { reason: why } => Outcome::NoFeasible { reason: format!("{reason}; {why}") },
             planned => planned,
         };
