@@ -175,7 +175,8 @@ impl Swapper<'_> {
         let case_closest = case_closest_m(&scene, executed, self.fps)?;
         if let Some(ins) = &executed.plan.inserted {
             // Never seen by the log: always drawn from the library.
-            let mut model = crate::inserted::with_empty_actor(self.model, track, ins);
+            let dirs = (self.scene_dir, self.model_dir);
+            let (model, auto) = crate::inserted::from_library(self.model, track, ins, dirs, self.library)?;
             let check = AdversaryCheck {
                 track_id: track.clone(),
                 log_closest_m: None,
@@ -183,7 +184,7 @@ impl Swapper<'_> {
                 case_closest_m: case_closest,
                 replaced: true,
                 why: format!("inserted ({}): drawn from the asset library", ins.lane),
-                auto: self.fill_from_library(&mut model, track)?,
+                auto,
             };
             return Ok((Some(model), check));
         }

@@ -340,7 +340,7 @@ pub fn run_demo_on<B: Backend + Clone>(
                         fps: render_settings.fps,
                         user_replaced: user_replaced.clone(),
                     };
-                    run_swapping(&inputs, &req, &t0, &pb, &|e| swapper.swap(e))?
+                    run_swapping(&inputs, &req, &t0, &pb, &|e| swapper.swap(e).map(|(m, c)| (m, Some(c))))?
                 }
                 _ => run(&inputs, &req, &t0, None, &pb)?,
             };

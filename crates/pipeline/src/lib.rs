@@ -19,6 +19,7 @@ pub mod replace_showcase;
 pub mod report;
 pub mod report_assets;
 pub mod run;
+pub mod run_library;
 pub mod run_out;
 pub mod synth_asset;
 

@@ -200,7 +200,10 @@ pub struct RunSummary {
 
 /// Decides, once the case is executed and before anything is drawn, whether its adversary is
 /// drawn from another model (`Some`: the model to draw with) and records why.
-pub type AdversarySwap<'a> = dyn Fn(&scene::Executed) -> Result<(Option<recon::SceneModel>, crate::auto_replace::AdversaryCheck), PipelineError>
+/// (`None` check: nothing to record.)
+pub type AdversarySwap<'a> = dyn Fn(
+        &scene::Executed,
+    ) -> Result<(Option<recon::SceneModel>, Option<crate::auto_replace::AdversaryCheck>), PipelineError>
     + 'a;
 
 /// Everything `run` needs besides the request.
@@ -232,7 +235,7 @@ pub fn run_with<B: Backend>(
     progress: &ProgressBar,
     simulate: Box<cases::runner::SimulateFn>,
 ) -> Result<RunSummary, PipelineError> {
-    run_inner(inputs, req, t0, llm, progress, simulate, None)
+    run_with_swap(inputs, req, t0, llm, progress, simulate, None)
 }
 
 /// [`run`] with the adversary's model decided by `swap` after the case is executed (the demo's
@@ -244,10 +247,11 @@ pub fn run_swapping<B: Backend>(
     progress: &ProgressBar,
     swap: &AdversarySwap,
 ) -> Result<RunSummary, PipelineError> {
-    run_inner(inputs, req, t0, None, progress, Box::new(sim::simulate), Some(swap))
+    run_with_swap(inputs, req, t0, None, progress, Box::new(sim::simulate), Some(swap))
 }
 
-fn run_inner<B: Backend>(
+/// [`run_with`] and, where `swap` is given, [`run_swapping`]'s decision on the adversary's model.
+pub fn run_with_swap<B: Backend>(
     inputs: &RunInputs<B>,
     req: &CaseRequest,
     t0: &T0Choice,
@@ -304,7 +308,7 @@ fn run_inner<B: Backend>(
     let swapped = match swap {
         Some(swap) => {
             let (model, check) = swap(&executed)?;
-            summary.adversary = Some(check);
+            summary.adversary = check;
             model
         }
         None => None,

@@ -287,7 +287,8 @@ pub struct ReplaceFlags {
     /// the nearest synthetic one)>. Repeatable.
     #[arg(long = "replace")]
     pub replace: Vec<String>,
-    /// The asset library --replace reads.
+    /// The asset library --replace reads; `run` also draws an inserted adversary from it (its
+    /// `auto` choice), or as the synthetic sedan where the directory holds no library.
     #[arg(long, default_value = "assets")]
     pub asset_library: PathBuf,
     /// Chamfer weight of the alignment.

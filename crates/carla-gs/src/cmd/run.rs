@@ -180,19 +180,30 @@ pub fn run(a: RunArgs) -> anyhow::Result<()> {
     let pb = count_bar("frames");
     let llm = llm.as_mut().map(|b| b.as_mut() as &mut dyn reason::backend::Backend);
     let simulate = a.physics.simulate_fn()?;
+    // An inserted adversary is drawn from --asset-library (else the synthetic sedan).
+    let library = pipeline::run_library::RunLibrary {
+        scene: &scene,
+        scene_dir: &a.scene,
+        model: &model,
+        model_dir: &a.model,
+        library: &a.replace.asset_library,
+        fps: settings.fps,
+    };
+    let swap = |e: &scene::Executed| library.swap(e);
+    let swap = Some(&swap as &pipeline::run::AdversarySwap);
     let s = match a.video.device {
         Device::Cpu => {
             let inputs = RunInputs { scene: &scene, model: &model, backend: &CpuF32, render: &settings, out: &a.out };
-            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+            pipeline::run::run_with_swap(&inputs, &req, &t0, llm, &pb, simulate, swap)
         }
         Device::CpuF64 => {
             let inputs = RunInputs { scene: &scene, model: &model, backend: &Cpu, render: &settings, out: &a.out };
-            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+            pipeline::run::run_with_swap(&inputs, &req, &t0, llm, &pb, simulate, swap)
         }
         Device::Cuda => {
             let backend = open_cuda()?;
             let inputs = RunInputs { scene: &scene, model: &model, backend: &backend, render: &settings, out: &a.out };
-            pipeline::run::run_with(&inputs, &req, &t0, llm, &pb, simulate)
+            pipeline::run::run_with_swap(&inputs, &req, &t0, llm, &pb, simulate, swap)
         }
     }
     .with_context(|| format!("run of {} failed", a.scene.display()))?;
