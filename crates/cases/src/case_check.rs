@@ -5,7 +5,7 @@
 //! reasons, every time and distance is finite, comfort percentiles are finite and non-negative
 //! and ComfortViol a percentage, and every measured instant lies in the measured interval. A refusal names the round and field and what was expected.
 
-use crate::runner::{CaseResult, Status};
+use crate::result::{CaseResult, Status};
 use metrics::ttc::TTC_CAP_S;
 use metrics::CaseMetrics;
 

@@ -17,7 +17,9 @@
 //! and the harness records it as "no plan" with that reason, so it stays in every denominator.
 //! Every rollout tried is counted in the case's `how`.
 
-use crate::runner::{cmp_rank, execute, refine_planner, CaseConfig};
+use crate::case_config::{execute, CaseConfig};
+use crate::refine::refine_planner;
+use crate::result::cmp_rank;
 use crate::tables::verified;
 use metrics::CaseMetrics;
 use reason::agents::{plan_of_candidate, ranked_candidates, ranked_candidates_with};
@@ -130,7 +132,7 @@ impl Search<'_> {
     }
 
     /// The best valid near miss once more, its target moved ahead of the executed end-point
-    /// error and closing in harder (the refinement's first strategy, `runner::refine_planner`).
+    /// error and closing in harder (the refinement's first strategy, `refine::refine_planner`).
     fn pre_compensate(&mut self, o: &ReasonOptions) -> Result<(), String> {
         let (Some((b, rank, off, _)), Some(e)) = (&self.best, &self.best_executed) else { return Ok(()) };
         if self.done() || !b.metrics.validity.valid {

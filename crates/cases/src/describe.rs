@@ -4,7 +4,7 @@
 //! only and those constraints where the flags leave them open ([`SceneRequest`]); a scene whose
 //! reading stays invalid after the re-prompts is an error naming the scene and why.
 
-use crate::runner::SceneRequest;
+use crate::case_config::SceneRequest;
 use crate::spec::T0Spec;
 use reason::backend::Backend;
 use reason::intent::{describe, Intent};

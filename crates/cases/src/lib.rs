@@ -6,13 +6,16 @@
 //! results do not depend on the thread count (every case has its own seed).
 
 pub mod case_check;
+pub mod case_config;
 pub mod choose;
 pub mod describe;
 pub mod llm_validity;
 pub mod merge;
 pub mod paired;
 pub mod plots;
+pub mod refine;
 pub mod report;
+pub mod result;
 pub mod runner;
 pub mod shard;
 pub mod spec;

@@ -6,7 +6,7 @@
 //! asked (the case is `rejected`, no plan). Shares are over all chains, so every reply counts.
 //! Written as `table_llm_validity.{md,csv}`.
 
-use crate::runner::{CaseResult, Status};
+use crate::result::{CaseResult, Status};
 use crate::spec::AgentName;
 use reason::{Validity, ValidityStats};
 use serde::{Deserialize, Serialize};

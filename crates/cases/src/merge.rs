@@ -11,7 +11,7 @@
 //! before anything is allocated from it), and each case file's numbers
 //! ([`crate::case_check`]) before the tables count them.
 
-use crate::runner::CaseResult;
+use crate::result::CaseResult;
 use crate::shard::{ShardRecord, RECORD_FORMAT, RECORD_VERSION};
 use crate::{report, AgentTiming, Report};
 use std::collections::BTreeMap;

@@ -8,7 +8,7 @@
 //! * Why no plan: for each agent, the attempts without a rollout by reason (no feasible, by the
 //!   agent's reason in a few classes; failed, by stage).
 
-use crate::runner::{CaseResult, Round, Status};
+use crate::result::{CaseResult, Round, Status};
 use crate::spec::AgentName;
 use crate::tables::{frac, stat, verified, Stat, AS_PLANNED, REFINED};
 use serde::{Deserialize, Serialize};

@@ -3,7 +3,7 @@
 //! as Markdown, CSV and JSON: the summary, Table I, the paired table, why no plan, Table II and
 //! the LLM reply validity.
 
-use crate::runner::{CaseResult, Status};
+use crate::result::{CaseResult, Status};
 use crate::shard::Settings;
 use crate::{llm_validity, paired, plots, tables, window, AgentTiming, EvalError, Failure, Report};
 use std::fmt::Write;

@@ -12,7 +12,8 @@
 //! whole attempt list, and its own attempts with their place in the whole list. `crate::merge`
 //! reads any set of such records back into the tables one run over all attempts writes.
 
-use crate::spec::{AgentName, Attempt};
+pub use crate::spec::attempt_key;
+use crate::spec::{fnv1a, AgentName, Attempt, FNV_OFFSET};
 use crate::window::Window;
 use crate::AgentTiming;
 use serde::{Deserialize, Serialize};
@@ -59,23 +60,6 @@ impl Shard {
     pub fn record_name(&self) -> String {
         format!("shard-{}-of-{}.json", self.index, self.count)
     }
-}
-
-/// FNV-1a, 64 bit: stable across platforms and versions (unlike `std`'s hasher).
-fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
-
-const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-
-/// The attempt's stable key: its scene name, behaviour and t0 in milliseconds.
-pub fn attempt_key(scene: &str, behavior: scene::Behavior, t0_s: f64) -> u64 {
-    let identity = format!("{scene}\u{1f}{}\u{1f}{}", behavior.as_str(), (t0_s * 1000.0).round() as i64);
-    fnv1a(identity.as_bytes(), FNV_OFFSET)
 }
 
 /// Each attempt's shard (same order as `attempts`): the attempts ranked by their scene name's

@@ -194,7 +194,7 @@ impl Attempt {
 
 /// Every attempt, in a fixed order: scenes by name (whatever order they were given in), then
 /// behaviour (as given), then t0. The seed depends only on the run seed and the attempt's
-/// identity ([`crate::shard::attempt_key`]), never on the agent or on which other attempts run:
+/// identity ([`attempt_key`]), never on the agent or on which other attempts run:
 /// agents face equal draws, and a shard draws what the whole run would have.
 pub fn attempts(scenes: &[Scene], behaviours: &[Behavior], t0: &T0Spec, seed: u64) -> Vec<Attempt> {
     attempts_of(&scenes.iter().map(SceneMeta::of).collect::<Vec<_>>(), behaviours, t0, seed)
@@ -209,7 +209,7 @@ pub fn attempts_of(scenes: &[SceneMeta], behaviours: &[Behavior], t0: &T0Spec, s
         let s = &scenes[si];
         for b in behaviours {
             for t in t0.times_for(s.duration_s) {
-                let key = crate::shard::attempt_key(&s.name, *b, t);
+                let key = attempt_key(&s.name, *b, t);
                 out.push(Attempt {
                     scene_index: si,
                     scene: s.name.clone(),
@@ -257,6 +257,23 @@ pub fn enumerate(
     seed: u64,
 ) -> Vec<CaseSpec> {
     attempts(scenes, behaviours, t0, seed).iter().flat_map(|a| agents.iter().map(|g| a.for_agent(*g))).collect()
+}
+
+/// FNV-1a, 64 bit: stable across platforms and versions (unlike `std`'s hasher).
+pub(crate) fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// The attempt's stable key: its scene name, behaviour and t0 in milliseconds.
+pub fn attempt_key(scene: &str, behavior: scene::Behavior, t0_s: f64) -> u64 {
+    let identity = format!("{scene}\u{1f}{}\u{1f}{}", behavior.as_str(), (t0_s * 1000.0).round() as i64);
+    fnv1a(identity.as_bytes(), FNV_OFFSET)
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@
 //!   as not successful (the metrics already fold validity into Success).
 //! * Validity of LLM replies (raw-valid, valid after retry, repaired), case counts, failures.
 
-use crate::runner::{CaseResult, Round, Status};
+use crate::result::{CaseResult, Round, Status};
 use crate::spec::AgentName;
 use reason::Validity;
 use scene::executed::InvalidReason;

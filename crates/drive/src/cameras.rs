@@ -4,7 +4,6 @@
 //! at the pose the world gives it and every other actor as logged; the cameras' calibration as a
 //! policy is told it; and which cameras `--cameras` names.
 
-use crate::episode::Draw;
 use crate::error::DriveError;
 use crate::policy::CameraInfo;
 use recon::backend::Backend;
@@ -39,6 +38,20 @@ impl<'a, B: Backend> Cameras<'a, B> {
         let painter = Painter::new(backend, model, scene);
         Ok(Cameras { painter, model, scene, names: names.to_vec(), scale })
     }
+}
+
+/// Draws the ego's cameras: `draw(world_from_ego, t, adversary track, its pose)` gives one
+/// picture a camera.
+pub trait Draw {
+    /// Refuses an adversary the drawer cannot draw (no actor of that track).
+    fn check(&self, adversary_track: &str) -> Result<(), DriveError>;
+    fn draw(
+        &self,
+        world_from_ego: &Transform3,
+        t: f64,
+        adversary_track: &str,
+        adversary: Option<BoxPose>,
+    ) -> Result<Vec<Canvas>, DriveError>;
 }
 
 impl<B: Backend> Draw for Cameras<'_, B> {

@@ -13,11 +13,11 @@
 //! pose `delta` is not applied at all, so a replayed episode's frames are the open-loop video's.
 
 use crate::action::{validate, Action};
+pub use crate::cameras::Draw;
 use crate::error::DriveError;
 use crate::policy::{CameraFrame, EgoState, EpisodeInfo, GroundTruth, Observation, Policy, Ready};
 use crate::route::Route;
 use crate::world::{logged_ego, Contact, Touch, World};
-use recon::pose::BoxPose;
 use render::canvas::Canvas;
 use scene::frames::wrap_angle;
 use scene::glam::{DMat3, DVec2, DVec3};
@@ -58,20 +58,6 @@ impl Default for EpisodeSettings {
             rollout: sim::RolloutConfig::default(),
         }
     }
-}
-
-/// Draws the ego's cameras: `draw(world_from_ego, t, adversary track, its pose)` gives one
-/// picture a camera.
-pub trait Draw {
-    /// Refuses an adversary the drawer cannot draw (no actor of that track).
-    fn check(&self, adversary_track: &str) -> Result<(), DriveError>;
-    fn draw(
-        &self,
-        world_from_ego: &Transform3,
-        t: f64,
-        adversary_track: &str,
-        adversary: Option<BoxPose>,
-    ) -> Result<Vec<Canvas>, DriveError>;
 }
 
 /// One tick as the episode file records it: the state the policy saw, what it was given, what

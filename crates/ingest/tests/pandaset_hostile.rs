@@ -333,7 +333,7 @@ fn sibling_links_must_join_one_object_and_fields_must_have_their_types() {
     let frames: Vec<Vec<ingest::pandaset::cuboids::Cuboid>> = (0..3)
         .map(|k| {
             let f = src.join(format!("annotations/cuboids/{k:02}.json"));
-            ingest::pandaset::cuboids::parse_frame(&f, &std::fs::read(&f).unwrap()).unwrap()
+            ingest::pandaset::cuboid_records::parse_frame(&f, &std::fs::read(&f).unwrap()).unwrap()
         })
         .collect();
     let (tracks, report) = ingest::pandaset::cuboids::tracks(&frames, &[100.0, 100.1, 100.2]);

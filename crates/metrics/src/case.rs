@@ -13,6 +13,7 @@
 //! * Comfort of the executed adversary path and of the plan's raw reference waypoints.
 
 use crate::comfort::{comfort, Comfort};
+pub use crate::error::MetricsError;
 use crate::kinematics::{uniform, velocities, METRIC_DT_S};
 use crate::ttc::{box_ttc, center_ttc, Footprint};
 use scene::executed::{Contact, Validity};
@@ -48,17 +49,6 @@ pub struct CaseMetrics {
     pub validity: Validity,
     pub comfort_executed: Option<Comfort>,
     pub comfort_reference: Option<Comfort>,
-}
-
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum MetricsError {
-    /// The executed trajectory does not cover the plan's interval with at least two samples.
-    #[error("the executed trajectory does not cover the plan interval [{t0:.3}, {t1:.3}] s")]
-    Interval { t0: f64, t1: f64 },
-    /// A value no rollout can produce, or a stored summary its steps contradict
-    /// ([`crate::plausible`]).
-    #[error("`{field}`: {message}")]
-    Implausible { field: String, message: String },
 }
 
 /// Zone test of the adversary centre `adv` against the ego at `ego`, with axes of `axes`.

@@ -6,6 +6,7 @@
 
 pub mod case;
 pub mod comfort;
+pub mod error;
 pub mod kinematics;
 pub mod ncap;
 pub mod plausible;

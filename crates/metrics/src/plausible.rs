@@ -7,7 +7,7 @@
 //! periods, counts, resampled series), since a case may be measured without being read.
 //! Each refusal names the field (`steps[30].x`) and what was expected.
 
-use crate::case::MetricsError;
+use crate::error::MetricsError;
 use scene::Executed;
 
 /// Largest |coordinate| (m): beyond any UTM northing (1e7 m).

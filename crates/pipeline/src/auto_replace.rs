@@ -170,7 +170,7 @@ impl Swapper<'_> {
     pub fn swap(&self, executed: &Executed) -> Result<(Option<SceneModel>, AdversaryCheck), PipelineError> {
         let track = &executed.plan.adversary_track;
         let vehicle = self.harvest.vehicle(track);
-        let scene = scene::inserted::with_inserted(self.scene, &executed.plan)
+        let scene = scene::plan::with_inserted(self.scene, &executed.plan)
             .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
         let case_closest = case_closest_m(&scene, executed, self.fps)?;
         if let Some(ins) = &executed.plan.inserted {

@@ -9,6 +9,7 @@ pub mod batch;
 pub mod cache;
 pub mod case;
 pub mod demo;
+pub mod demo_config;
 pub mod error;
 pub mod fingerprint;
 pub mod inserted;

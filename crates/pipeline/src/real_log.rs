@@ -8,7 +8,7 @@
 //! The trained model is harvested into the demo's asset library and a case's adversary drawn from
 //! the log's own well-seen vehicles where the case needs it (`auto_replace`).
 
-use crate::demo::DemoConfig;
+use crate::demo_config::DemoConfig;
 use crate::PipelineError;
 use recon::TrainConfig;
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! no script error may occur; the verdict is written to `<body data-asset-check="...">` (read by
 //! the headless-browser test) and shown at the top of the page.
 
-use crate::demo::DemoResult;
+use crate::demo_config::DemoResult;
 use crate::run::RunSummary;
 use crate::PipelineError;
 use cases::tables::{table1, table2, Stat};

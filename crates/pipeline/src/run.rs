@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
 
-pub const RUN_FORMAT: &str = "carla-gs-run/1";
+pub use crate::run_out::RUN_FORMAT;
 
 /// How to render the videos of a case.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -315,7 +315,7 @@ pub fn run_with_swap<B: Backend>(
     };
     // An inserted adversary joins the scene as a track, and the model as an asset from the
     // library (the swap, where there is one) or the synthetic sedan.
-    let scene_with = scene::inserted::with_inserted(inputs.scene, &best.plan)
+    let scene_with = scene::plan::with_inserted(inputs.scene, &best.plan)
         .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
     let scene = &*scene_with;
     let inserted_model = match (&best.plan.inserted, &swapped) {

@@ -12,6 +12,8 @@
 use crate::PipelineError;
 use std::path::{Path, PathBuf};
 
+pub const RUN_FORMAT: &str = "carla-gs-run/1";
+
 /// Every file and directory a run writes at the top of its directory.
 pub const OUTPUTS: [&str; 10] = [
     "run.json",
@@ -38,9 +40,7 @@ const ALSO_OURS: [&str; 2] = [crate::cache::MARKER, JOURNAL];
 fn recorded(out: &Path) -> std::collections::BTreeSet<String> {
     let mut set = std::collections::BTreeSet::new();
     let read = |name: &str| scene::format::read_json::<serde_json::Value>(&out.join(name)).ok();
-    if let Some(run) =
-        read("run.json").filter(|_| scene::owned::has_format_marker(out, "run.json", crate::run::RUN_FORMAT))
-    {
+    if let Some(run) = read("run.json").filter(|_| scene::owned::has_format_marker(out, "run.json", RUN_FORMAT)) {
         let strings = |v: Option<&serde_json::Value>| {
             v.and_then(|f| f.as_array())
                 .into_iter()
@@ -110,7 +110,7 @@ pub fn check_out(out: &Path) -> Result<(), PipelineError> {
         return Err(refuse(out, "exists and is not a directory; expected a run directory"));
     }
     let entries = names(out)?;
-    let marked = scene::owned::has_format_marker(out, "run.json", crate::run::RUN_FORMAT);
+    let marked = scene::owned::has_format_marker(out, "run.json", RUN_FORMAT);
     let only_ours = entries.iter().all(|(n, _)| OUTPUTS.contains(&n.as_str()) || ALSO_OURS.contains(&n.as_str()));
     if !entries.is_empty() && !marked && !only_ours {
         return Err(refuse(
@@ -118,7 +118,7 @@ pub fn check_out(out: &Path) -> Result<(), PipelineError> {
             format!(
                 "is a non-empty directory that is not a run directory (no run.json with format \"{}\"); \
                  choose an empty or new --out",
-                crate::run::RUN_FORMAT
+                RUN_FORMAT
             ),
         ));
     }
@@ -268,12 +268,12 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let d = root.path().join("run");
         std::fs::create_dir_all(d.join("videos")).unwrap();
-        let old = format!(r#"{{"format": "{}", "files": ["videos/old.mp4"]}}"#, crate::run::RUN_FORMAT);
+        let old = format!(r#"{{"format": "{}", "files": ["videos/old.mp4"]}}"#, RUN_FORMAT);
         std::fs::write(d.join("run.json"), old).unwrap();
         std::fs::write(d.join("scenario.json"), b"old").unwrap();
         std::fs::write(d.join("videos/old.mp4"), b"old").unwrap();
         std::fs::write(d.join("README.txt"), b"a person's notes").unwrap();
-        let new = format!(r#"{{"format": "{}", "new": true}}"#, crate::run::RUN_FORMAT);
+        let new = format!(r#"{{"format": "{}", "new": true}}"#, RUN_FORMAT);
         let s = StagedRun::new(&d).unwrap();
         std::fs::write(s.path().join("run.json"), &new).unwrap();
         std::fs::write(s.path().join("bev.png"), b"new").unwrap();

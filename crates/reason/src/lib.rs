@@ -19,6 +19,7 @@ pub mod insert_check;
 pub mod intent;
 pub mod lane_motion;
 pub mod lanes;
+pub mod planned;
 pub mod planner;
 pub mod prompt;
 pub mod quintic;

@@ -5,7 +5,7 @@
 //! rollout-checked choice runs where the ordinary one finds nothing that works).
 
 use crate::behavior::{spec, EndPolicy};
-use crate::planner::AIM_TTC_S;
+use crate::planned::AIM_TTC_S;
 use crate::world::World;
 use scene::Behavior;
 

@@ -22,7 +22,7 @@
 use crate::behavior::{spec, EndPolicy};
 use crate::clearance::Bystanders;
 use crate::from_rest::FromRest;
-use crate::planner::{center_ttc, end_velocity, Planned, PLAN_MAX_JERK};
+use crate::planned::{center_ttc, end_velocity, Planned, PLAN_MAX_JERK};
 use crate::quintic::{limits, trackability, End, Quintic};
 use crate::world::{Vehicle, World};
 use scene::glam::DVec2;

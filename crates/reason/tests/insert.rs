@@ -5,8 +5,9 @@
 use reason::insert::{placements, InsertMode};
 use reason::{reason, Agent, Outcome, ReasonOptions};
 use scene::glam::{DVec2, DVec3};
-use scene::inserted::{with_inserted, Entry};
+use scene::inserted::Entry;
 use scene::map::{Map, Polyline};
+use scene::plan::with_inserted;
 use scene::{
     Behavior, Ego, EgoSizeSource, Frame, ObjectClass, Scene, Source, SourceKind, Track, TrackState, Transform3,
 };

@@ -29,7 +29,7 @@ fn planner_always_plans_or_says_why_not() {
                         plan.validate().unwrap();
                         assert_eq!(plan.behavior, b);
                         assert_eq!(plan.waypoints.last().map(|w| w.t), Some(plan.start_time_s + plan.ttc_s));
-                        let with = scene::inserted::with_inserted(scene, &plan).unwrap();
+                        let with = scene::plan::with_inserted(scene, &plan).unwrap();
                         let world = World::new(&with, o.t0, o.radius).unwrap();
                         let adversary = world.vehicle(&plan.adversary_track).unwrap();
                         let at_rest = (adversary.now.speed() < 1.0).then_some(adversary.now.heading);

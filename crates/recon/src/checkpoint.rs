@@ -380,5 +380,12 @@ pub fn load_run(path: &Path) -> Result<(TrainState, Option<RunIdentity>), ReconE
     Ok((st, header.run))
 }
 
+/// The fingerprint of `<scene_dir>/scene.json` a checkpoint records (CRC-32C of its bytes).
+pub fn scene_fingerprint(scene_dir: &Path) -> Result<String, ReconError> {
+    let file = scene_dir.join(scene::format::SCENE_FILE);
+    let bytes = scene::input::read_capped(&file, scene::input::MAX_SCENE_JSON_BYTES, "a scene.json")?;
+    Ok(format!("{:08x}", crc32c::crc32c(&bytes)))
+}
+
 #[cfg(test)]
 mod tests;

@@ -5,19 +5,13 @@
 //! actor it holds is a track of the scene. A finished run (the checkpoint at the last
 //! iteration, its model.json written) is reported as finished and nothing is rewritten.
 
+pub use crate::checkpoint::scene_fingerprint;
 use crate::checkpoint::{self, RunIdentity, TrainState};
 use crate::config::TrainConfig;
 use crate::error::ReconError;
 use crate::model_io::load_config;
 use scene::Scene;
 use std::path::Path;
-
-/// The fingerprint of `<scene_dir>/scene.json` a checkpoint records (CRC-32C of its bytes).
-pub fn scene_fingerprint(scene_dir: &Path) -> Result<String, ReconError> {
-    let file = scene_dir.join(scene::format::SCENE_FILE);
-    let bytes = scene::input::read_capped(&file, scene::input::MAX_SCENE_JSON_BYTES, "a scene.json")?;
-    Ok(format!("{:08x}", crc32c::crc32c(&bytes)))
-}
 
 /// The identity of a run on `scene` (in `scene_dir`) with `cfg`.
 pub fn identity(scene_dir: &Path, scene: &Scene, cfg: &TrainConfig) -> Result<RunIdentity, ReconError> {

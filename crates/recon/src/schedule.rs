@@ -8,7 +8,6 @@ use crate::actor_space::ActorSpace;
 use crate::checkpoint::TrainState;
 use crate::config::TrainConfig;
 use crate::densify::{densify_and_prune, reset_opacity, Counts, Rule};
-use crate::train::derive_seed;
 use scene::Scene;
 use splat::Gaussians;
 
@@ -104,6 +103,14 @@ pub(crate) fn density_control(
         reset_opacity(&mut sets, &mut st.adam);
     }
     out
+}
+
+/// Seed for a purpose at an iteration (splitmix-style mixing).
+pub fn derive_seed(seed: u64, purpose: u64, n: u64) -> u64 {
+    let mut z = seed ^ purpose.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ n.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@ use crate::data::View;
 use crate::densify::{Counts, Stats};
 use crate::loss::{view_loss, ChannelGrads, LossParts, Rendered};
 use crate::optim::{adam_step, means_lr, AdamState};
+pub use crate::schedule::derive_seed;
 use crate::schedule::{actor_space_of, density_control};
 use crate::sky::Sky;
 use rand::seq::SliceRandom;
@@ -84,14 +85,6 @@ pub(crate) fn refresh_smoothing(
 pub(crate) fn smoothing_fits(state: &TrainState) -> bool {
     state.smoothing.len() == state.model.actors.len() + 1
         && state.smoothing.iter().zip(state.model.sets()).all(|(f, g)| f.len() == g.len())
-}
-
-/// Seed for a purpose at an iteration (splitmix-style mixing).
-pub fn derive_seed(seed: u64, purpose: u64, n: u64) -> u64 {
-    let mut z = seed ^ purpose.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ n.wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 impl<'a, B: Backend> Trainer<'a, B> {

@@ -7,7 +7,7 @@
 
 use crate::RenderError;
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Whether `path` is a file that starts as an MP4 does.
 pub fn is_mp4(path: &Path) -> bool {
@@ -44,7 +44,7 @@ fn refuse(path: &Path, detail: String) -> RenderError {
 /// something that is not ours: see the module's header.
 pub fn check_clip_out(path: &Path, png: bool, force: bool) -> Result<(), RenderError> {
     if png {
-        let dir = crate::encode::png_dir(path);
+        let dir = png_dir(path);
         let Ok(meta) = std::fs::symlink_metadata(&dir) else { return Ok(()) };
         if !meta.is_dir() {
             return Err(refuse(&dir, "exists and is not a directory of PNG frames; nothing was written".into()));
@@ -71,6 +71,12 @@ pub fn check_clip_out(path: &Path, png: bool, force: bool) -> Result<(), RenderE
         ));
     }
     Ok(())
+}
+
+/// Where the PNG sequence of `path` goes.
+pub fn png_dir(path: &Path) -> PathBuf {
+    let stem = path.file_stem().map_or("video".into(), |s| s.to_string_lossy().into_owned());
+    path.with_file_name(format!("{stem}_frames"))
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 //! temporary file removed.
 
 use crate::canvas::Canvas;
+pub use crate::clip_out::png_dir;
 use crate::RenderError;
 use scene::StagedDir;
 use serde::{Deserialize, Serialize};
@@ -190,12 +191,6 @@ impl Encoder {
         };
         Ok(VideoOutput { path, kind, frames, width: w, height: h, fps })
     }
-}
-
-/// Where the PNG sequence of `path` goes.
-pub fn png_dir(path: &Path) -> PathBuf {
-    let stem = path.file_stem().map_or("video".into(), |s| s.to_string_lossy().into_owned());
-    path.with_file_name(format!("{stem}_frames"))
 }
 
 #[cfg(test)]

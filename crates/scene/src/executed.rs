@@ -129,45 +129,10 @@ impl Executed {
     pub fn adversary_path(&self) -> Vec<Pose2> {
         self.steps.iter().map(|s| Pose2 { t: s.t, x: s.x, y: s.y, heading: s.heading }).collect()
     }
-
-    /// Validates what metrics rely on: version, equal-length finite series with increasing time,
-    /// and physically plausible sizes, periods and values ([`crate::executed_check`]).
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        if self.format != EXECUTED_FORMAT {
-            return Err(("format".into(), format!("expected \"{EXECUTED_FORMAT}\", got \"{}\"", self.format)));
-        }
-        self.plan.validate().map_err(|(f, m)| (format!("plan.{f}"), m))?;
-        if self.steps.len() < 2 || self.steps.len() != self.ego_path.len() {
-            return Err((
-                "steps".into(),
-                format!("need >= 2 steps and one ego pose per step ({} vs {})", self.steps.len(), self.ego_path.len()),
-            ));
-        }
-        if self.validity.valid != self.validity.reasons.is_empty() {
-            return Err((
-                "validity.valid".into(),
-                format!("is {} but {} reasons are listed", self.validity.valid, self.validity.reasons.len()),
-            ));
-        }
-        for (i, (s, e)) in self.steps.iter().zip(&self.ego_path).enumerate() {
-            let v = [s.t, s.x, s.y, s.heading, s.speed, e.t, e.x, e.y, e.heading];
-            if v.iter().any(|x| !x.is_finite()) {
-                return Err((format!("steps[{i}]"), "must be finite numbers".into()));
-            }
-            if (s.t - e.t).abs() > 1e-6 {
-                return Err((format!("ego_path[{i}].t"), format!("{} does not match steps[{i}].t {}", e.t, s.t)));
-            }
-            if i > 0 && s.t <= self.steps[i - 1].t {
-                return Err((format!("steps[{i}].t"), "times must increase strictly".into()));
-            }
-        }
-        // Sizes, periods, counts and plausible values of every record.
-        crate::executed_check::check_values(self)
-    }
 }
 
 /// Loads and validates an executed file (a regular file of at most
-/// [`crate::input::MAX_EXECUTED_BYTES`]).
+/// [`crate::input::MAX_EXECUTED_BYTES`]; `Executed::validate` is in `executed_check`).
 pub fn load_executed(path: &std::path::Path) -> Result<Executed, crate::SceneError> {
     let e: Executed = crate::format::read_json_within(path, crate::input::MAX_EXECUTED_BYTES, "an executed file")?;
     e.validate().map_err(|(field, message)| crate::SceneError::Invalid { file: path.to_path_buf(), field, message })?;

@@ -21,7 +21,7 @@
 //! Times themselves are not bounded (scene clocks may be Unix time) but must be finite and
 //! increase strictly.
 
-use crate::executed::Executed;
+use crate::executed::{Executed, EXECUTED_FORMAT};
 use crate::motion::Pose2;
 
 /// Smallest actor box dimension (m).
@@ -187,6 +187,43 @@ pub fn check_values(e: &Executed) -> Check {
         spacing(&name("adversary"), r.adversary.iter().map(|p| p.t), 1.0 / r.rate_hz)?;
     }
     Ok(())
+}
+
+impl Executed {
+    /// Validates what metrics rely on: version, equal-length finite series with increasing time,
+    /// and physically plausible sizes, periods and values ([`crate::executed_check`]).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if self.format != EXECUTED_FORMAT {
+            return Err(("format".into(), format!("expected \"{EXECUTED_FORMAT}\", got \"{}\"", self.format)));
+        }
+        self.plan.validate().map_err(|(f, m)| (format!("plan.{f}"), m))?;
+        if self.steps.len() < 2 || self.steps.len() != self.ego_path.len() {
+            return Err((
+                "steps".into(),
+                format!("need >= 2 steps and one ego pose per step ({} vs {})", self.steps.len(), self.ego_path.len()),
+            ));
+        }
+        if self.validity.valid != self.validity.reasons.is_empty() {
+            return Err((
+                "validity.valid".into(),
+                format!("is {} but {} reasons are listed", self.validity.valid, self.validity.reasons.len()),
+            ));
+        }
+        for (i, (s, e)) in self.steps.iter().zip(&self.ego_path).enumerate() {
+            let v = [s.t, s.x, s.y, s.heading, s.speed, e.t, e.x, e.y, e.heading];
+            if v.iter().any(|x| !x.is_finite()) {
+                return Err((format!("steps[{i}]"), "must be finite numbers".into()));
+            }
+            if (s.t - e.t).abs() > 1e-6 {
+                return Err((format!("ego_path[{i}].t"), format!("{} does not match steps[{i}].t {}", e.t, s.t)));
+            }
+            if i > 0 && s.t <= self.steps[i - 1].t {
+                return Err((format!("steps[{i}].t"), "times must increase strictly".into()));
+            }
+        }
+        // Sizes, periods, counts and plausible values of every record.
+        check_values(self)
+    }
 }
 
 #[cfg(test)]

@@ -1,21 +1,18 @@
 //! An adversary inserted where the log has none (`scenario.json`'s `inserted`): a road user the
 //! Reason stage placed on a lane, with its size, class and the poses it had before the case (one
 //! per scene frame it exists at, on the scene clock), so that every later stage can put it back
-//! into the scene as if the log had seen it ([`with_inserted`]): the Execute stage checks its
+//! into the scene as if the log had seen it ([`crate::plan::with_inserted`]): the Execute stage checks its
 //! contacts against the logged road users, the Re-render stage draws it from the asset library,
 //! the exports write it as an entity.
 //!
 //! The plan carries the poses rather than the rule that made them: a plan file is checked on its
 //! own ([`Inserted::validate`]) and means the same whichever version of the planner reads it.
 
-use crate::plan::Plan;
-use crate::{ObjectClass, Scene, Track, TrackState};
-use glam::DVec3;
+use crate::ObjectClass;
 use serde::{Deserialize, Serialize};
-use std::borrow::Cow;
 
-/// Prefix of every inserted road user's id (never a logged track's: [`with_inserted`] refuses a
-/// clash).
+/// Prefix of every inserted road user's id (never a logged track's: [`crate::plan::with_inserted`]
+/// refuses a clash).
 pub const INSERTED_PREFIX: &str = "inserted-";
 /// Box sides an inserted road user may have (m): a bicycle to an articulated bus.
 pub const SIZE_RANGE_M: [f64; 2] = [0.3, 25.0];
@@ -77,43 +74,4 @@ impl Inserted {
         }
         Ok(())
     }
-}
-
-/// The scene the plan was made for: `scene` itself, or with the plan's inserted road user added
-/// as a track (id `plan.adversary_track`; a state at every frame whose time matches one of its
-/// poses within a microsecond). Refuses an inserted id that a logged track already has, a pose
-/// at no frame's time, or a plan whose adversary is not marked inserted but named like one.
-pub fn with_inserted<'a>(scene: &'a Scene, plan: &Plan) -> Result<Cow<'a, Scene>, (String, String)> {
-    let Some(ins) = &plan.inserted else { return Ok(Cow::Borrowed(scene)) };
-    ins.validate()?;
-    if scene.tracks.iter().any(|t| t.id == plan.adversary_track) {
-        return Err((
-            "adversary_track".into(),
-            format!("`{}` is marked inserted but the scene logs a track of that id", plan.adversary_track),
-        ));
-    }
-    let mut states = Vec::with_capacity(ins.poses.len());
-    let mut next = 0;
-    for p in &ins.poses {
-        // Frames are in time order: walk them once.
-        while next < scene.frames.len() && scene.frames[next].timestamp_s < p.t - 1e-6 {
-            next += 1;
-        }
-        let Some(_) = scene.frames.get(next).filter(|f| (f.timestamp_s - p.t).abs() <= 1e-6) else {
-            return Err(("inserted.poses".into(), format!("t = {} s is no frame time of scene `{}`", p.t, scene.name)));
-        };
-        states.push(TrackState {
-            frame: next,
-            center: DVec3::new(p.x, p.y, p.z),
-            heading: p.heading,
-            size_lwh: ins.size_lwh,
-            velocity: None,
-            valid: true,
-            motion: None,
-        });
-        next += 1;
-    }
-    let mut s = scene.clone();
-    s.tracks.push(Track { id: plan.adversary_track.clone(), class: ins.class, states });
-    Ok(Cow::Owned(s))
 }

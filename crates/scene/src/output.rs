@@ -3,6 +3,7 @@
 //! one step, so a crash or an error never leaves a half-written result over a good one.
 
 use crate::error::SceneError;
+use crate::owned::{file_name, parent_dir};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -115,17 +116,6 @@ impl StagedDir {
         let _ = self.staging.close();
         Ok(self.dest)
     }
-}
-
-pub(crate) fn parent_dir(path: &Path) -> PathBuf {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    }
-}
-
-pub(crate) fn file_name(path: &Path) -> String {
-    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into())
 }
 
 #[cfg(test)]

@@ -7,8 +7,7 @@
 //! person's file or folder that merely looks like one is never touched.
 
 use crate::error::SceneError;
-use crate::output::{file_name, parent_dir};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Whether `dir/file` is a JSON object whose `format` field is `format`: never for anything but
 /// a regular file of at most [`crate::input::MAX_JSON_BYTES`] (a link to `/dev/zero` is not read).
@@ -103,6 +102,17 @@ pub(crate) fn remove_stale_staging(dest: &Path) {
 
 fn process_gone(pid: u32) -> bool {
     Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists()
+}
+
+pub(crate) fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+pub(crate) fn file_name(path: &Path) -> String {
+    path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into())
 }
 
 #[cfg(test)]

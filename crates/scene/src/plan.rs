@@ -6,7 +6,10 @@
 //! analysis time `start_time_s` (t0) to `t0 + ttc_s`.
 
 use crate::zones::{Zone, ZoneLayout};
+use crate::{Scene, Track, TrackState};
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 pub const PLAN_FORMAT: &str = "carla-gs-plan/1";
 
@@ -273,6 +276,45 @@ impl Plan {
     pub fn end_time_s(&self) -> f64 {
         self.waypoints.last().map_or(self.start_time_s, |w| w.t)
     }
+}
+
+/// The scene the plan was made for: `scene` itself, or with the plan's inserted road user added
+/// as a track (id `plan.adversary_track`; a state at every frame whose time matches one of its
+/// poses within a microsecond). Refuses an inserted id that a logged track already has, a pose
+/// at no frame's time, or a plan whose adversary is not marked inserted but named like one.
+pub fn with_inserted<'a>(scene: &'a Scene, plan: &Plan) -> Result<Cow<'a, Scene>, (String, String)> {
+    let Some(ins) = &plan.inserted else { return Ok(Cow::Borrowed(scene)) };
+    ins.validate()?;
+    if scene.tracks.iter().any(|t| t.id == plan.adversary_track) {
+        return Err((
+            "adversary_track".into(),
+            format!("`{}` is marked inserted but the scene logs a track of that id", plan.adversary_track),
+        ));
+    }
+    let mut states = Vec::with_capacity(ins.poses.len());
+    let mut next = 0;
+    for p in &ins.poses {
+        // Frames are in time order: walk them once.
+        while next < scene.frames.len() && scene.frames[next].timestamp_s < p.t - 1e-6 {
+            next += 1;
+        }
+        let Some(_) = scene.frames.get(next).filter(|f| (f.timestamp_s - p.t).abs() <= 1e-6) else {
+            return Err(("inserted.poses".into(), format!("t = {} s is no frame time of scene `{}`", p.t, scene.name)));
+        };
+        states.push(TrackState {
+            frame: next,
+            center: DVec3::new(p.x, p.y, p.z),
+            heading: p.heading,
+            size_lwh: ins.size_lwh,
+            velocity: None,
+            valid: true,
+            motion: None,
+        });
+        next += 1;
+    }
+    let mut s = scene.clone();
+    s.tracks.push(Track { id: plan.adversary_track.clone(), class: ins.class, states });
+    Ok(Cow::Owned(s))
 }
 
 /// Loads and validates a plan file (a regular file of at most [`crate::input::MAX_PLAN_BYTES`]).

@@ -12,7 +12,7 @@
 //! back; every field's range is checked by [`RolloutConfig::validate`] (`config_check`) first.
 
 use crate::error::SimError;
-use crate::rollout::RolloutConfig;
+use crate::rollout_config::RolloutConfig;
 
 /// Most control steps in one rollout.
 pub const MAX_CONTROL_STEPS: f64 = 200_000.0;

@@ -36,7 +36,7 @@
 //! | `resample_hz` | at most [`scene::executed_check::MAX_RESAMPLED_SERIES`] rates of 1 mHz to 1 kHz | sample counts: [`crate::budget`] |
 
 use crate::error::SimError;
-use crate::rollout::RolloutConfig;
+use crate::rollout_config::RolloutConfig;
 use crate::tyre::TyreModel;
 use scene::executed_check as ex;
 use std::f64::consts::FRAC_PI_2;

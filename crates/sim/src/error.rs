@@ -30,5 +30,26 @@ pub enum SimError {
     VehicleOnly { id: String, class: &'static str, backend: &'static str },
     /// Its messages say they are about CARLA (and are not repeated as a source).
     #[error(transparent)]
-    Carla(#[from] crate::carla::CarlaError),
+    Carla(#[from] CarlaError),
+}
+
+/// Errors of the CARLA backend; each says what was being waited for and what to check.
+#[derive(Debug, thiserror::Error)]
+pub enum CarlaError {
+    #[error("no CARLA server answered at {host}:{port} within the {timeout_s} s timeout ({message}); start the server (CarlaUnreal.sh / CarlaUE4.sh) or fix --carla-host/--carla-port, or raise --carla-timeout")]
+    NoServer { host: String, port: u16, timeout_s: f64, message: String },
+    #[error("cannot start the CARLA bridge `{program}`: {message} (set CARLA_GS_PYTHON to a Python with `carla==0.9.16`, or run tools/setup.sh)")]
+    Start { program: String, message: String },
+    #[error("the CARLA bridge exited while {waiting_for}; its last output:\n{stderr}")]
+    Exited { waiting_for: String, stderr: String },
+    #[error("the CARLA bridge sent nothing for {seconds} s while waiting for {waiting_for}; stopped it. Its last output:\n{stderr}")]
+    Silent { waiting_for: String, seconds: f64, stderr: String },
+    #[error("the CARLA bridge reported `{kind}`: {message}")]
+    Bridge { kind: String, message: String },
+    #[error("CARLA bridge protocol: {0}")]
+    Protocol(String),
+    #[error("CARLA backend option `{field}`: {message}")]
+    Option { field: &'static str, message: String },
+    #[error("writing the OpenDRIVE map for CARLA: {0}")]
+    Map(String),
 }

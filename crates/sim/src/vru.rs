@@ -1,5 +1,5 @@
 //! Executing a pedestrian's or cyclist's plan. Neither is a car: no PID on pedals and steering,
-//! no tyres. Both track the same smoothed reference as a vehicle ([`crate::rollout::prepare`]:
+//! no tyres. Both track the same smoothed reference as a vehicle ([`crate::prepare::prepare`]:
 //! the logged run up to t0, then the plan's waypoints, "from frame 0") with a feedback law that
 //! asks for an acceleration, and a motion model that grants only what the class can do
 //! ([`scene::mobility`]):
@@ -21,7 +21,8 @@
 use crate::actuation::Control;
 use crate::collision::{cuboid, first_overlap, Replayed};
 use crate::error::SimError;
-use crate::rollout::{finish, Prepared, RolloutConfig};
+use crate::prepare::{finish, Prepared};
+use crate::rollout_config::RolloutConfig;
 use crate::tracker::{control_steps, StepRecord, TrackError};
 use scene::executed::Contact;
 use scene::glam::DVec2;

@@ -8,11 +8,11 @@
 // Index loops mirror the matrix formulas above; iterator rewrites would hide them.
 #![allow(clippy::needless_range_loop)]
 
-use crate::backward::G2;
+use crate::backward_step::G2;
 use crate::camera::Camera;
+use crate::forward::RenderOptions;
 use crate::gaussians::Gaussians;
 use crate::project::{Frame, Projected};
-use crate::render::RenderOptions;
 use crate::sh::basis_grad;
 
 fn mat2_mul(a: [[f64; 2]; 2], b: [[f64; 2]; 2]) -> [[f64; 2]; 2] {

@@ -7,9 +7,11 @@
 //! Imports nothing of ours.
 
 pub mod backward;
+pub mod backward_step;
 pub mod camera;
 mod chain;
 pub mod fast;
+pub mod forward;
 pub mod gaussians;
 pub mod ply;
 pub mod project;

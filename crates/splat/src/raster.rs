@@ -14,9 +14,9 @@
 //! storing per-pixel lists.
 
 use crate::camera::Camera;
+use crate::forward::{normal_rotation, output_normal, project_sorted_into, Features, Image, PixelSum, RenderOptions};
 use crate::gaussians::Gaussians;
 use crate::project::Projected;
-use crate::render::{normal_rotation, output_normal, project_sorted_into, Features, Image, PixelSum, RenderOptions};
 use crate::tiles::{alpha_at, bin_into, spans, Hot, Tiles, TILE, T_MIN};
 use rayon::prelude::*;
 

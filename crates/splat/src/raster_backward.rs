@@ -7,9 +7,9 @@
 //! gsplat does, so nothing per contribution is stored. Each Gaussian sums its screen-space
 //! gradients over the tile's pixels; `backward` merges the tiles.
 
-use crate::backward::{step_back, Behind, PixelUp, Upstream, G2};
+use crate::backward_step::{step_back, Behind, PixelUp, Upstream, G2};
+use crate::forward::{Features, RenderOptions};
 use crate::raster::Context;
-use crate::render::{Features, RenderOptions};
 use crate::tiles::{alpha_at, spans, TILE};
 
 /// One pixel's state while its tile is walked back to front (one cache line or two).

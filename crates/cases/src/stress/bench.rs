@@ -6,7 +6,7 @@
 //! vehicle exists ([`adjacent_lane_vehicle`]). Every number comes from [`crate::tables`] and
 //! [`crate::paired`] over a subset of the cases, so no attempt leaves a denominator.
 
-use crate::runner::{CaseResult, Status};
+use crate::result::{CaseResult, Status};
 use crate::spec::AgentName;
 use crate::tables::{self, InvalidCounts};
 use crate::{paired, Report};

@@ -15,7 +15,7 @@
 //! over itself): map polylines are cut to the parts inside, track states outside become invalid
 //! (not seen), and an ego pose outside is an error (choose a larger radius).
 
-use super::{without_sensors, StressError};
+use super::copy::{without_sensors, StressError};
 use scene::glam::{DMat3, DVec2, DVec3};
 use scene::{Scene, Transform3};
 

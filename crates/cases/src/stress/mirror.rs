@@ -12,7 +12,7 @@
 //! ego's left becomes on its right, kerb-side parking moves to the other side. Mirroring twice is
 //! the identity (exactly: negation is exact in floating point).
 
-use super::without_sensors;
+use super::copy::without_sensors;
 use scene::glam::{DMat3, DVec3};
 use scene::{Scene, Transform3};
 

@@ -6,7 +6,7 @@
 //! the way `reason::world` estimates them, so positions and velocities stay consistent. The
 //! ego's poses and its own track are the log's clock and reference and are not perturbed.
 
-use super::{seed_for, without_sensors, SplitMix};
+use super::copy::{seed_for, without_sensors, SplitMix};
 use scene::glam::DVec3;
 use scene::{Scene, Track};
 

@@ -11,7 +11,7 @@
 //! shuffled by the seed and the first `count` that fit are placed, aligned with the kerb.
 
 use super::box2::{polyline_distance, Box2};
-use super::{without_sensors, SplitMix};
+use super::copy::{without_sensors, SplitMix};
 use scene::glam::{DVec2, DVec3};
 use scene::{LoggedMotion, ObjectClass, Scene, Track, TrackState};
 

@@ -10,8 +10,8 @@
 //! extrapolated). Offsets are along the path's left normal, so lanes stay parallel on curves.
 //! There is no map (as with PandaSet): lanes are the planner's lateral bands.
 
+use super::copy::StressError;
 use super::noise::recompute_velocities;
-use super::StressError;
 use scene::glam::{DVec2, DVec3};
 use scene::model::DEFAULT_EGO_SIZE_LWH;
 use scene::motion::{sample_series, Pose2};

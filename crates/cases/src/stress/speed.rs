@@ -14,7 +14,7 @@
 //! Scaling the whole clock instead (ego included) would also be consistent, but it changes the
 //! ego's log and shortens it; this copy keeps the ego as recorded, like the corner cases do.
 
-use super::{without_sensors, StressError};
+use super::copy::{without_sensors, StressError};
 use scene::frames::wrap_angle;
 use scene::glam::DVec3;
 use scene::motion::MAX_GAP_S;

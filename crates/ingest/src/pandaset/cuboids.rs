@@ -26,7 +26,6 @@
 //! * **Speed** from positions: central differences of consecutive states over their frames'
 //!   times (one-sided at a track's ends). **Motion label** from `attributes.object_motion`.
 
-pub use super::cuboid_records::{parse_frame, parse_frame_within};
 use scene::glam::DVec3;
 use scene::{LoggedMotion, ObjectClass, Track, TrackState};
 use std::collections::{BTreeMap, HashMap, HashSet};

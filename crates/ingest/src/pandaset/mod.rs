@@ -205,7 +205,7 @@ fn read_cuboids(dir: &Path, n: usize) -> Result<Vec<Vec<cuboids::Cuboid>>, Inges
             Some(f) => {
                 found += 1;
                 let left = cuboids::MAX_CUBOID_RECORDS - records;
-                let frame = cuboids::parse_frame_within(&f, &files::read_bytes(&f)?, left)?;
+                let frame = cuboid_records::parse_frame_within(&f, &files::read_bytes(&f)?, left)?;
                 records += frame.len();
                 out.push(frame);
             }

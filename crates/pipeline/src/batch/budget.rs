@@ -12,7 +12,7 @@
 //! * [`MAX_PLAN_BYTES`]: 256 MiB of plan JSON (a 1,000-log plan is a few MB), counted node by node
 //!   as the plan is built, so a huge `args` list repeated on every node is refused too.
 
-use super::plan::Node;
+use super::plan_node::Node;
 use super::BatchError;
 use std::path::{Path, PathBuf};
 

@@ -5,8 +5,9 @@
 //! `eval-cases` parses them, and no stage's extra `args` repeats a flag the plan sets itself (a
 //! second `--out` would be refused by the command, or worse, win). Each refusal names the
 //! manifest and the field.
+//! Reading a manifest (`Manifest::read`) is here: its shape checks (`manifest`), then these.
 
-use super::manifest::Manifest;
+use super::manifest::{Manifest, MAX_MANIFEST_BYTES};
 use super::BatchError;
 use std::path::Path;
 
@@ -98,4 +99,16 @@ pub fn stage_values(m: &Manifest, file: &Path) -> Result<(), BatchError> {
         no_plan_flag(file, "run", &r.args)?;
     }
     Ok(())
+}
+impl Manifest {
+    /// Reads and checks `file`; paths stay as written (see [`Manifest::resolve`]).
+    pub fn read(file: &Path) -> Result<Manifest, BatchError> {
+        // A regular file only (a FIFO would block the read forever), within the budget.
+        let bytes = scene::input::read_capped(file, MAX_MANIFEST_BYTES, "a batch manifest")?;
+        let text = String::from_utf8(bytes).map_err(|_| BatchError::invalid(file, "is not UTF-8 text"))?;
+        let m: Manifest = toml::from_str(&text).map_err(|e| BatchError::invalid(file, e.to_string()))?;
+        m.check(file)?;
+        stage_values(&m, file)?;
+        Ok(m)
+    }
 }

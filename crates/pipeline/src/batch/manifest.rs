@@ -163,18 +163,8 @@ fn check_resources(file: &Path, stage: &str, r: &Resources) -> Result<(), BatchE
 }
 
 impl Manifest {
-    /// Reads and checks `file`; paths stay as written (see [`Manifest::resolve`]).
-    pub fn read(file: &Path) -> Result<Manifest, BatchError> {
-        // A regular file only (a FIFO would block the read forever), within the budget.
-        let bytes = scene::input::read_capped(file, MAX_MANIFEST_BYTES, "a batch manifest")?;
-        let text = String::from_utf8(bytes).map_err(|_| BatchError::invalid(file, "is not UTF-8 text"))?;
-        let m: Manifest = toml::from_str(&text).map_err(|e| BatchError::invalid(file, e.to_string()))?;
-        m.check(file)?;
-        super::checks::stage_values(&m, file)?;
-        Ok(m)
-    }
-
-    fn check(&self, file: &Path) -> Result<(), BatchError> {
+    /// The shape checks of [`Manifest::read`] (`checks` adds the values').
+    pub(super) fn check(&self, file: &Path) -> Result<(), BatchError> {
         let bad = |m: String| BatchError::invalid(file, m);
         if self.logs.is_empty() {
             return Err(bad("no [[log]]: nothing to run".into()));

@@ -15,6 +15,7 @@ pub mod checks;
 pub mod manifest;
 pub mod node;
 pub mod plan;
+pub mod plan_node;
 
 /// What can go wrong reading a manifest or a plan, or running a node.
 #[derive(Debug, thiserror::Error)]

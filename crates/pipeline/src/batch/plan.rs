@@ -17,6 +17,7 @@
 
 use super::budget::{argv_bytes, Sizer};
 use super::manifest::{Manifest, Resources as Asked};
+pub use super::plan_node::{Node, Resources};
 use super::BatchError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -29,13 +30,6 @@ pub const PLAN_FILE: &str = "plan.json";
 /// environment together).
 pub const MAX_ARGV_BYTES: usize = 1 << 20;
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Resources {
-    pub cpus: u32,
-    pub gpus: u32,
-    pub memory_gb: f64,
-}
-
 impl Resources {
     fn from(asked: &Asked, cpus: u32, gpus: u32, memory_gb: f64) -> Self {
         Resources {
@@ -44,22 +38,6 @@ impl Resources {
             memory_gb: asked.memory_gb.unwrap_or(memory_gb),
         }
     }
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Node {
-    /// `stage/name`, unique.
-    pub id: String,
-    pub stage: String,
-    /// Position within its stage (the `SLURM_ARRAY_TASK_ID` of its array job).
-    pub index: usize,
-    /// The `carla-gs` arguments (without the program name).
-    pub args: Vec<String>,
-    pub env: BTreeMap<String, String>,
-    pub inputs: Vec<PathBuf>,
-    pub outputs: Vec<PathBuf>,
-    pub deps: Vec<String>,
-    pub resources: Resources,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -141,7 +141,7 @@ pub fn check_scene(dir: &Path, record: &ModelRecord, scene_dir: &Path, scene: &S
     }
     if let Some(fp) = crate::checkpoint::header_run(&dir.join("checkpoint.bin")).map(|r| r.scene_fingerprint) {
         let file = scene_dir.join(scene::format::SCENE_FILE);
-        let now = crate::resume::scene_fingerprint(scene_dir)?;
+        let now = crate::checkpoint::scene_fingerprint(scene_dir)?;
         if now != fp {
             return Err(ReconError::Format {
                 file: dir.join("checkpoint.bin"),

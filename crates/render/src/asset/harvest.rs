@@ -23,9 +23,11 @@
 //! harvested tracks) and refuses to overwrite any other asset of the same name unless forced.
 //! See docs/render.md for the defaults and what they rest on.
 
+pub use super::library::HarvestRecord;
 use super::library::{without_transparent, AssetEntry, AssetSource, Library, NewAsset, UpAxis, MIN_GEOMETRY_OPACITY};
 use super::mirror::with_mirror;
-use super::observe::{azimuth_bin, azimuth_span, observe, Observation, AZIMUTH_BINS};
+pub use super::observe::Observed;
+use super::observe::{observe, AZIMUTH_BINS};
 use crate::RenderError;
 use recon::pose::box_pose_at;
 use scene::{ObjectClass, Scene, Track};
@@ -69,52 +71,6 @@ impl Thresholds {
         }
         Ok(())
     }
-}
-
-/// How the log saw one box over the training images.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Observed {
-    /// Training images with the box in view.
-    pub views: usize,
-    /// The least camera-to-box distance over them (m); `None` when never in view.
-    pub closest_m: Option<f64>,
-    /// The 30-degree azimuth sectors seen (0: [-180, -150) degrees, ... 11: [150, 180]).
-    pub azimuth_sectors: Vec<usize>,
-    /// The smallest arc holding every azimuth seen (degrees).
-    pub azimuth_span_deg: f64,
-    pub max_hull_px: f64,
-    pub total_hull_px: f64,
-}
-
-impl Observed {
-    /// Sums up the views of one box.
-    pub fn of(views: &[Observation]) -> Observed {
-        let mut sectors: Vec<usize> = views.iter().map(|o| azimuth_bin(o.azimuth_rad)).collect();
-        sectors.sort_unstable();
-        sectors.dedup();
-        let azimuths: Vec<f64> = views.iter().map(|o| o.azimuth_rad).collect();
-        Observed {
-            views: views.len(),
-            closest_m: views.iter().map(|o| o.distance_m).min_by(f64::total_cmp),
-            azimuth_sectors: sectors,
-            azimuth_span_deg: azimuth_span(&azimuths).to_degrees(),
-            max_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, f64::max),
-            total_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, |a, b| a + b), // (an empty `sum` is -0.0)
-        }
-    }
-}
-
-/// What the library records of a harvested vehicle (`AssetEntry::harvest`).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct HarvestRecord {
-    /// The scene the model was trained on (its name).
-    pub scene: String,
-    /// The track's median box size (m).
-    pub track_size_lwh: [f64; 3],
-    #[serde(flatten)]
-    pub observed: Observed,
-    /// Whether training had already mirrored the actor (model.json), so the harvest did not.
-    pub mirrored_in_model: bool,
 }
 
 /// One vehicle actor's outcome.

@@ -19,7 +19,7 @@
 
 use super::align::frame_of;
 use super::covariance::{transform, Mat3};
-use super::harvest::HarvestRecord;
+use super::observe::Observed;
 use crate::RenderError;
 use scene::ObjectClass;
 use serde::{Deserialize, Serialize};
@@ -391,6 +391,19 @@ pub fn extract_actor(model_dir: &Path, track: &str) -> Result<(Gaussians, [f64; 
         });
     }
     Ok((g, actor.size_lwh))
+}
+
+/// What the library records of a harvested vehicle (`AssetEntry::harvest`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct HarvestRecord {
+    /// The scene the model was trained on (its name).
+    pub scene: String,
+    /// The track's median box size (m).
+    pub track_size_lwh: [f64; 3],
+    #[serde(flatten)]
+    pub observed: Observed,
+    /// Whether training had already mirrored the actor (model.json), so the harvest did not.
+    pub mirrored_in_model: bool,
 }
 
 #[cfg(test)]

@@ -22,6 +22,7 @@ use crate::asset::align::convex_hull;
 use recon::pose::BoxPose;
 use scene::frames::box_corners;
 use scene::glam::DVec3;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// Sectors of azimuth (30 degrees each).
@@ -152,6 +153,39 @@ pub fn azimuth_span(azimuths_rad: &[f64]) -> f64 {
     let wrap_gap = a[0] + 2.0 * PI - a[a.len() - 1];
     let gap = a.windows(2).map(|w| w[1] - w[0]).fold(wrap_gap, f64::max);
     (2.0 * PI - gap).max(0.0)
+}
+
+/// How the log saw one box over the training images.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Observed {
+    /// Training images with the box in view.
+    pub views: usize,
+    /// The least camera-to-box distance over them (m); `None` when never in view.
+    pub closest_m: Option<f64>,
+    /// The 30-degree azimuth sectors seen (0: [-180, -150) degrees, ... 11: [150, 180]).
+    pub azimuth_sectors: Vec<usize>,
+    /// The smallest arc holding every azimuth seen (degrees).
+    pub azimuth_span_deg: f64,
+    pub max_hull_px: f64,
+    pub total_hull_px: f64,
+}
+
+impl Observed {
+    /// Sums up the views of one box.
+    pub fn of(views: &[Observation]) -> Observed {
+        let mut sectors: Vec<usize> = views.iter().map(|o| azimuth_bin(o.azimuth_rad)).collect();
+        sectors.sort_unstable();
+        sectors.dedup();
+        let azimuths: Vec<f64> = views.iter().map(|o| o.azimuth_rad).collect();
+        Observed {
+            views: views.len(),
+            closest_m: views.iter().map(|o| o.distance_m).min_by(f64::total_cmp),
+            azimuth_sectors: sectors,
+            azimuth_span_deg: azimuth_span(&azimuths).to_degrees(),
+            max_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, f64::max),
+            total_hull_px: views.iter().map(|o| o.hull_px).fold(0.0, |a, b| a + b), // (an empty `sum` is -0.0)
+        }
+    }
 }
 
 #[cfg(test)]

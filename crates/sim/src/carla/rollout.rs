@@ -22,7 +22,8 @@ use crate::actuation::Control;
 use crate::collision::{cuboid, first_overlap};
 use crate::error::SimError;
 use crate::model::G;
-use crate::rollout::{finish, prepare, RolloutConfig};
+use crate::prepare::{finish, prepare};
+use crate::rollout_config::RolloutConfig;
 use crate::tracker::{ControlLaw, StepRecord};
 use export::ground::{ego_ground_series, ground_series, interp};
 use scene::executed::Contact;
@@ -59,7 +60,7 @@ fn check(opts: &CarlaOptions, dt: f64) -> Result<(), CarlaError> {
 pub fn simulate(scene: &Scene, plan: &Plan, cfg: &RolloutConfig, opts: &CarlaOptions) -> Result<Executed, SimError> {
     let dt = cfg.tracker.control_dt_s;
     check(opts, dt)?;
-    let scene = &*crate::rollout::with_inserted(scene, plan)?;
+    let scene = &*crate::prepare::with_inserted(scene, plan)?;
     let prep = prepare(scene, plan, cfg)?;
     if prep.adversary.class.is_vulnerable() {
         let (id, class) = (prep.adversary.id.clone(), prep.adversary.class.as_str());

@@ -27,9 +27,9 @@ mod tile;
 
 use crate::backward::{backward_into as backward_f64, Gradients, Upstream};
 use crate::camera::Camera;
+use crate::forward::{Features, Image, RenderOptions};
 use crate::gaussians::Gaussians;
 use crate::raster::{render_into as render_f64, Context};
-use crate::render::{Features, Image, RenderOptions};
 use crate::tiles::{Tiles, TILE};
 use backward::{tile_backward, TileBack, G_CH};
 use chain::{gaussian_backward32, Out, Screen};
