@@ -1,7 +1,7 @@
-//! A rollout in CARLA: the same preparation as the built-in backend (`rollout::prepare`: checked
+//! A rollout in CARLA: the same preparation as the built-in backend (`prepare::prepare`: checked
 //! plan, smoothed reference, initial pose/heading/speed, replayed actors), then one bridge `step`
 //! per control period with the command of the shared control law, the adversary's state read back
-//! from CARLA, and the same output (`rollout::finish`: validity, steps, resamplings).
+//! from CARLA, and the same output (`prepare::finish`: validity, steps, resamplings).
 //!
 //! * Time: CARLA ticks a fixed step equal to the control period, so frame `frame0 + k` is log time
 //!   `t_start + k dt`. The rollout stops at the last whole step at or before the plan's end.
