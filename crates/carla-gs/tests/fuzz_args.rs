@@ -1,6 +1,7 @@
 //! Issue 28 item 6, numeric arguments (docs/fuzz.md): the binary on a small street with extreme
 //! values (0, -1, NaN, inf, 1e300, 2^63) for numeric flags of `render`, `simulate`, `reason`,
-//! `synth`, `train`, `run`, `eval-cases` and `bench-splat`. Each run is killed after 20 s; the exit code must be 0 or 2 (3
+//! `synth`, `train`, `run`, `eval-cases`, `bench-splat`, `export-xodr`, `asset`, `priors` and
+//! `drive`. Each run is killed after 20 s; the exit code must be 0 or 2 (3
 //! also for `reason`), never a signal, 101 (panic) or 134 (abort).
 
 use std::path::Path;
@@ -85,6 +86,28 @@ fn numeric_flags_exit_0_2_or_3() {
         (bench_splat.clone(), "--iters", vec![], "1", &[0, 2]),
         (run_at.clone(), "--seeds-per-t0", vec![], "1", &[0, 2, 3]),
     ]);
+    // Issue 56, the rest: export-xodr, asset, priors and drive (on a run made here).
+    let (o_x, o_lib, o_run_d, o_drive) = (out("map.xodr"), out("lib"), out("run-d"), out("drive"));
+    let run_d: Vec<&str> =
+        run_at[..run_at.len()].iter().map(|a| if *a == o_run.as_str() { o_run_d.as_str() } else { a }).collect();
+    assert!(matches!(exit_code(&run_d), Some(0 | 3)), "carla-gs {run_d:?}");
+    let drive = vec!["drive", &o_run_d, "--scene", s(&scene), "--model", s(&model), "--policy", "constant"];
+    let drive: Vec<&str> =
+        drive.into_iter().chain(["--cameras", "FRONT", "--no-video", "--force", "--out", &o_drive]).collect();
+    let xodr = vec!["export-xodr", s(&scene), "--out", &o_x, "--force"];
+    let asset = vec!["asset", "--from-synth", "van", "--library", &o_lib, "--name", "v", "--force"];
+    runs.extend::<Vec<Run>>(vec![
+        (xodr.clone(), "--lane-width", vec![], "3.5", &[0, 2]),
+        (asset.clone(), "--voxel", vec![], "0.2", &[0, 2]),
+        (vec!["priors", s(&scene), "--force"], "--seed", vec![], "1", &[0, 2]),
+    ]);
+    if Path::new(&o_run_d).join("scenario.json").is_file() {
+        for (flag, sane) in
+            [("--dt", "0.1"), ("--lead-in", "1"), ("--tail", "1"), ("--scale", "0.5"), ("--policy-timeout", "10")]
+        {
+            runs.push((drive.clone(), flag, vec![], sane, &[0, 2]));
+        }
+    }
     let mut n = 0;
     for (before, flag, after, sane, allowed) in &runs {
         // The command itself is right: with a sane value it succeeds (so a refusal below is the
