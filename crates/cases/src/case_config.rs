@@ -31,6 +31,9 @@ pub struct CaseConfig {
     /// The planner agent chooses among its candidates by their rollouts (`choose`); off: its
     /// first-ranked candidate, as predicted.
     pub check_rollouts: bool,
+    /// The insertion's per-scene street (`reason::insert::Street`), built once per scene of the
+    /// run rather than once per attempt.
+    pub streets: reason::insert::Streets,
 }
 
 /// A sentence's reading in one scene (`reason::intent`): the behaviour, and the adversary, zone

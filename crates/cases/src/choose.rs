@@ -174,7 +174,7 @@ pub fn choose(scene: &Scene, o: &ReasonOptions, cfg: &CaseConfig) -> Result<Choi
     }
     if insert && !s.done() {
         s.limit = s.tried + MAX_INSERTED_ROLLOUTS;
-        let all = reason::insert::placements(scene, o);
+        let all = reason::insert::placements_in(scene, o, Some(&s.cfg.streets));
         for p in &all {
             if s.done() {
                 break;

@@ -45,6 +45,7 @@ fn a_described_pedestrian_steps_out_in_that_scene_only() {
             window: Window::default(),
             requests: read.into_iter().map(|(k, v)| (k, v.request)).collect(),
             check_rollouts: true,
+            streets: Default::default(),
         },
         shard: None,
         cli_settings: Default::default(),

@@ -26,6 +26,7 @@ fn config(out: &Path, simulate: Box<cases::runner::SimulateFn>, plots: bool) -> 
             window: cases::window::Window::default(),
             requests: Default::default(),
             check_rollouts: true,
+            streets: Default::default(),
         },
         shard: None,
         cli_settings: Default::default(),

@@ -41,6 +41,7 @@ fn same_attempts_same_window_and_honest_baselines() {
             window: Window { horizon: Horizon::Seconds(horizon), ..Default::default() },
             requests: Default::default(),
             check_rollouts: true,
+            streets: Default::default(),
         },
         shard: None,
         cli_settings: Default::default(),

@@ -19,6 +19,7 @@ fn config(check_rollouts: bool) -> CaseConfig {
         window: cases::window::Window::default(),
         requests: Default::default(),
         check_rollouts,
+        streets: Default::default(),
     }
 }
 

@@ -29,6 +29,7 @@ fn config(out: &Path, seed: u64, shard: Option<Shard>) -> EvalConfig {
             window: cases::window::Window::default(),
             requests: Default::default(),
             check_rollouts: true,
+            streets: Default::default(),
         },
         shard,
         cli_settings: Default::default(),

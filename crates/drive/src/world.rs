@@ -88,7 +88,7 @@ impl<'a> World<'a> {
         }
         let [l, w, _] = executed.adversary.size_lwh;
         let (c, r) = cuboid(l, w);
-        let adversary = Replayed { id: id.clone(), class: track.class, runs: vec![path], cuboid: c, radius: r };
+        let adversary = Replayed::new(id.clone(), track.class, vec![path], c, r);
         let others = replayed_actors(scene, &id).into_iter().filter(|a| a.id != "ego").collect();
         let [el, ew, _] = scene.ego.size_lwh;
         Ok(World { scene, backprojection, adversary, executed_end: last.t, others, ego_box: cuboid(el, ew) })

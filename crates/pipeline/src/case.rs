@@ -214,6 +214,7 @@ pub fn select_case_with(
         window: req.window,
         requests: Default::default(),
         check_rollouts: true,
+        streets: Default::default(),
     };
     let mut attempts = Vec::new();
     let mut chosen: Option<(usize, CaseResult, Executed)> = None;

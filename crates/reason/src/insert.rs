@@ -22,10 +22,10 @@
 
 use crate::behavior::LANE_WIDTH;
 use crate::frenet::LanePath;
-use crate::insert_check::{first_overlap, lane_supported, oncoming_side, traffic, traffic_lanes, Seen, Support};
+use crate::insert_check::{first_overlap, lane_supported, oncoming_side, traffic_lanes, Seen, Support};
+pub use crate::street::{Street, Streets};
 use crate::world::World;
 use crate::{agents, Outcome, ReasonOptions};
-use scene::glam::DVec2;
 use scene::inserted::{Entry, Inserted, InsertedPose, INSERTED_PREFIX};
 use scene::{Behavior, ObjectClass, Scene, Track, TrackState};
 use serde::{Deserialize, Serialize};
@@ -67,8 +67,6 @@ impl std::str::FromStr for InsertMode {
 pub const DEFAULT_CAR_LWH: [f64; 3] = [4.6, 1.9, 1.55];
 /// Free space kept around the inserted box against every logged road user up to t0 (m).
 pub const CLEARANCE_M: f64 = 0.5;
-/// Straight extension of the ego's path at both ends (m): room for a car far ahead or behind.
-const EXTEND_M: f64 = 400.0;
 /// Lateral offset of a parked car's centre from its lane's centre (m).
 const KERB_OFFSET_M: f64 = 0.5 * LANE_WIDTH + 1.4;
 /// Spacing of the gaps tried along a lane (m).
@@ -103,28 +101,6 @@ pub struct Placement {
     pub id: String,
     pub inserted: Inserted,
     pub scene: Scene,
-}
-
-/// The ego's logged path (extended straight at both ends) as a reference path, and the ego's arc
-/// length on it at each frame's time; `None` when the ego hardly moves.
-fn ego_path(world: &World) -> Option<(LanePath, Vec<f64>)> {
-    let scene = world.scene;
-    let mut pts: Vec<DVec2> = Vec::new();
-    for p in &world.ego_series {
-        if pts.last().is_none_or(|q| q.distance(p.position()) > 0.2) {
-            pts.push(p.position());
-        }
-    }
-    let n = pts.len();
-    if n < 2 || pts[0].distance(pts[n - 1]) < 5.0 {
-        return None;
-    }
-    let (head, tail) = ((pts[1] - pts[0]).normalize(), (pts[n - 1] - pts[n - 2]).normalize());
-    pts.insert(0, pts[0] - head * EXTEND_M);
-    pts.push(pts[n] + tail * EXTEND_M);
-    let path = LanePath::from_points(pts, vec![])?;
-    let s = scene.frames.iter().map(|f| path.frenet(world.ego_pose(f.timestamp_s).position()).x).collect();
-    Some((path, s))
 }
 
 /// Gaps from `lo` to `hi` m every [`GAP_STEP_M`], nearest `preferred` first: a free gap between
@@ -241,24 +217,32 @@ fn poses(world: &World, path: &LanePath, ego_s: &[f64], slot: &Slot, height: f64
 /// that exists there, clear of every logged road user and the ego up to t0. Empty when the ego
 /// hardly moves, or nothing fits.
 pub fn placements(scene: &Scene, o: &ReasonOptions) -> Vec<Placement> {
+    placements_in(scene, o, None)
+}
+
+/// [`placements`] with the scene's [`Street`] taken from `streets` (built there once per scene).
+pub fn placements_in(scene: &Scene, o: &ReasonOptions, streets: Option<&Streets>) -> Vec<Placement> {
     let Some(b) = o.behavior else { return Vec::new() };
     let Some(world) = crate::world::World::new(scene, o.t0, o.radius) else { return Vec::new() };
-    let Some((path, ego_s)) = ego_path(&world) else { return Vec::new() };
+    let street = match streets {
+        Some(c) => c.get(&world),
+        None => std::sync::Arc::new(Street::of(&world)),
+    };
+    let Some(Street { path, ego_s, seen }) = street.as_ref() else { return Vec::new() };
     let size = o.insert_size_lwh.unwrap_or(DEFAULT_CAR_LWH);
     let id = (0..).map(|k| format!("{INSERTED_PREFIX}{k}")).find(|id| scene.tracks.iter().all(|t| &t.id != id));
     let Some(id) = id else { return Vec::new() };
-    let seen = traffic(&world, &path);
-    let left_oncoming = oncoming_side(&world, &path, &seen).unwrap_or(true);
+    let left_oncoming = oncoming_side(&world, path, seen).unwrap_or(true);
     let mut out = Vec::new();
     // A car ahead counts as a candidate within the radius of the ego's position at t0.
-    for slot in slots(&world, b, left_oncoming, &seen, o.radius - 3.0) {
+    for slot in slots(&world, b, left_oncoming, seen, o.radius - 3.0) {
         if out.len() >= MAX_PLACEMENTS {
             break;
         }
-        let poses = poses(&world, &path, &ego_s, &slot, size[2]);
+        let poses = poses(&world, path, ego_s, &slot, size[2]);
         let reverse = matches!(slot.motion, Motion::Oncoming { .. });
         let parked = slot.entry == Entry::Parked;
-        let support = lane_supported(&world, &path, &seen, &poses, slot.d, reverse, parked);
+        let support = lane_supported(&world, path, seen, &poses, slot.d, reverse, parked);
         let Support::Yes(how) = support else {
             tracing::debug!(lane = slot.lane, d = slot.d, motion = ?slot.motion, "insertion slot: no lane there");
             continue;

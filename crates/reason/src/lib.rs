@@ -25,6 +25,7 @@ pub mod prompt;
 pub mod quintic;
 pub mod reply;
 pub mod sampling;
+pub mod street;
 pub mod summary;
 pub mod target;
 pub mod trajectory_agent;

@@ -228,6 +228,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             },
             requests: Default::default(),
             check_rollouts: true,
+            streets: Default::default(),
         },
         shard: None,
         cli_settings: Default::default(),

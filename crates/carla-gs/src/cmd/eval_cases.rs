@@ -156,6 +156,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             },
             requests,
             check_rollouts: !a.no_rollout_check,
+            streets: Default::default(),
         },
         shard: a.shard,
         cli_settings,
