@@ -18,8 +18,7 @@
 
 use crate::PipelineError;
 use recon::SceneModel;
-use render::asset::align::AlignOptions;
-use render::asset::auto::{AutoChoice, AUTO};
+use render::asset::auto::AutoChoice;
 use render::asset::harvest::{HarvestReport, Thresholds, VehicleOutcome};
 use render::asset::library::UpAxis;
 use render::asset::observe::observe;
@@ -170,8 +169,7 @@ impl Swapper<'_> {
     pub fn swap(&self, executed: &Executed) -> Result<(Option<SceneModel>, AdversaryCheck), PipelineError> {
         let track = &executed.plan.adversary_track;
         let vehicle = self.harvest.vehicle(track);
-        let scene = scene::plan::with_inserted(self.scene, &executed.plan)
-            .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
+        let scene = crate::inserted::scene_with(self.scene, &executed.plan)?;
         let case_closest = case_closest_m(&scene, executed, self.fps)?;
         if let Some(ins) = &executed.plan.inserted {
             // Never seen by the log: always drawn from the library.
@@ -214,17 +212,7 @@ impl Swapper<'_> {
 
     /// Replaces actor `track` of `model` by the library's `auto` choice; that choice.
     fn fill_from_library(&self, model: &mut SceneModel, track: &str) -> Result<Option<AutoChoice>, PipelineError> {
-        let pairs = [(track.to_string(), AUTO.to_string())];
-        let done = render::asset::replace::replace_specs(
-            model,
-            self.scene_dir,
-            Some(self.model_dir),
-            &pairs,
-            self.library,
-            UpAxis::Z,
-            &AlignOptions::default(),
-        )?;
-        Ok(done.into_iter().next().and_then(|r| r.auto))
+        crate::inserted::fill_auto(model, track, (self.scene_dir, self.model_dir), self.library)
     }
 }
 

@@ -14,6 +14,8 @@ use render::asset::auto::{AutoChoice, AUTO};
 use render::asset::library::UpAxis;
 use render::asset::replace::{replace_actor, replace_specs};
 use scene::inserted::Inserted;
+use scene::{Plan, Scene};
+use std::borrow::Cow;
 use std::path::Path;
 
 /// Body colour of the fallback sedan (linear RGB): a mid grey, the commonest car colour.
@@ -36,9 +38,30 @@ pub fn with_sedan(model: &SceneModel, track: &str, ins: &Inserted) -> Result<Sce
     Ok(m)
 }
 
-/// `model` with the inserted adversary `track` drawn from the asset `library` (its `auto`
-/// choice for the inserted box: the nearest real asset of the class, else a synthetic one),
-/// aligned to the box; the choice. `scene_dir` and `model_dir` are the run's.
+/// The scene `plan` was made for (with its inserted road user as a track, if any); a plan that
+/// does not fit the scene is an error naming `scenario.json`'s field.
+pub fn scene_with<'a>(scene: &'a Scene, plan: &Plan) -> Result<Cow<'a, Scene>, PipelineError> {
+    scene::plan::with_inserted(scene, plan)
+        .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))
+}
+
+/// Replaces actor `track` of `model` by the asset `library`'s `auto` choice for it (the nearest
+/// real asset of its class and size, else a synthetic one), aligned to its box; that choice.
+/// `dirs` are the run's scene and model directories.
+pub fn fill_auto(
+    model: &mut SceneModel,
+    track: &str,
+    dirs: (&Path, &Path),
+    library: &Path,
+) -> Result<Option<AutoChoice>, PipelineError> {
+    let pairs = [(track.to_string(), AUTO.to_string())];
+    let (scene_dir, model_dir) = dirs;
+    let done = replace_specs(model, scene_dir, Some(model_dir), &pairs, library, UpAxis::Z, &AlignOptions::default())?;
+    Ok(done.into_iter().next().and_then(|r| r.auto))
+}
+
+/// `model` with the inserted adversary `track` drawn from the asset `library` ([`fill_auto`]
+/// on an empty actor of the inserted box); the choice.
 pub fn from_library(
     model: &SceneModel,
     track: &str,
@@ -47,8 +70,6 @@ pub fn from_library(
     library: &Path,
 ) -> Result<(SceneModel, Option<AutoChoice>), PipelineError> {
     let mut m = with_empty_actor(model, track, ins);
-    let pairs = [(track.to_string(), AUTO.to_string())];
-    let (scene_dir, model_dir) = dirs;
-    let done = replace_specs(&mut m, scene_dir, Some(model_dir), &pairs, library, UpAxis::Z, &AlignOptions::default())?;
-    Ok((m, done.into_iter().next().and_then(|r| r.auto)))
+    let auto = fill_auto(&mut m, track, dirs, library)?;
+    Ok((m, auto))
 }

@@ -315,8 +315,7 @@ pub fn run_with_swap<B: Backend>(
     };
     // An inserted adversary joins the scene as a track, and the model as an asset from the
     // library (the swap, where there is one) or the synthetic sedan.
-    let scene_with = scene::plan::with_inserted(inputs.scene, &best.plan)
-        .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
+    let scene_with = crate::inserted::scene_with(inputs.scene, &best.plan)?;
     let scene = &*scene_with;
     let inserted_model = match (&best.plan.inserted, &swapped) {
         (Some(ins), None) => Some(crate::inserted::with_sedan(inputs.model, &best.plan.adversary_track, ins)?),

@@ -36,8 +36,7 @@ impl RunLibrary<'_> {
     pub fn swap(&self, executed: &Executed) -> Result<(Option<SceneModel>, Option<AdversaryCheck>), PipelineError> {
         let Some(ins) = &executed.plan.inserted else { return Ok((None, None)) };
         let track = &executed.plan.adversary_track;
-        let scene = scene::plan::with_inserted(self.scene, &executed.plan)
-            .map_err(|(field, message)| PipelineError::stage("scenario.json", format!("`{field}`: {message}")))?;
+        let scene = crate::inserted::scene_with(self.scene, &executed.plan)?;
         let mut check = AdversaryCheck {
             track_id: track.clone(),
             log_closest_m: None,
