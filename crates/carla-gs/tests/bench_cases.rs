@@ -92,3 +92,61 @@ fn bench_counts_are_consistent() {
     assert_eq!(n(t, "cases"), attempts);
     assert!(t["cases_per_s"].as_f64().unwrap() > 0.0);
 }
+
+fn bench(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_carla-gs")).arg("bench-cases").args(args).output().expect("run carla-gs")
+}
+
+fn refused(o: std::process::Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "expected a refusal naming `{needle}`: {err}");
+    assert!(err.contains(needle), "expected `{needle}` in: {err}");
+}
+
+/// Issue 56: `bench-cases --out` wrote `bench.json`, `bench.md` and `eval/` into any folder. Now it
+/// is new, empty or ours (replaced whole, and only with `--force`), never inside `--data`.
+#[test]
+fn bench_out_is_new_empty_or_ours_replaced_whole_with_force() {
+    let Some(data) = data() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let small = ["--sources", "womd", "--perturbations", "none", "--behaviors", "sudden_braking", "--t0", "2"];
+    let small: Vec<&str> =
+        small.into_iter().chain(["--refine-rounds", "0", "--data", data.to_str().unwrap()]).collect();
+    // A person's folder with a bench.json of their own: refused, with or without --force.
+    let mine = tmp.path().join("mine");
+    std::fs::create_dir_all(&mine).unwrap();
+    std::fs::write(mine.join("bench.json"), br#"{"my": "numbers"}"#).unwrap();
+    let mine_s = s(&mine);
+    for extra in [&[][..], &["--force"]] {
+        let args: Vec<&str> = small.iter().copied().chain(["--out", &mine_s]).chain(extra.iter().copied()).collect();
+        refused(bench(&args), "not a bench-cases output");
+        assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
+        assert_eq!(std::fs::read(mine.join("bench.json")).unwrap(), br#"{"my": "numbers"}"#);
+    }
+    // Inside --data.
+    let inside = tmp.path().join("data-copy");
+    std::fs::create_dir_all(&inside).unwrap();
+    let args = ["--data", &s(&inside), "--out", &s(&inside.join("bench"))];
+    refused(bench(&args), "inside the input directory");
+    assert!(!inside.join("bench").exists());
+    // Ours: kept without --force, replaced whole with it.
+    let out = tmp.path().join("bench");
+    let out_s = s(&out);
+    let with_out: Vec<&str> = small.iter().copied().chain(["--out", &out_s]).collect();
+    assert!(bench(&with_out).status.success());
+    std::fs::write(out.join("stale.txt"), b"from before").unwrap();
+    refused(bench(&with_out), "pass --force");
+    assert!(out.join("stale.txt").is_file());
+    let forced: Vec<&str> = with_out.iter().copied().chain(["--force"]).collect();
+    assert!(bench(&forced).status.success());
+    assert!(out.join("bench.json").is_file() && out.join("eval/report.json").is_file());
+    assert!(!out.join("stale.txt").exists(), "replaced whole");
+    let beside: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(beside.is_empty(), "staging left beside --out: {beside:?}");
+}

@@ -1,9 +1,11 @@
 //! Issue 28 item 6, numeric arguments (docs/fuzz.md): the binary on a small street with extreme
 //! values (0, -1, NaN, inf, 1e300, 2^63) for numeric flags of `render`, `simulate`, `reason`,
-//! `synth`, `train`, `run`, `eval-cases`, `bench-splat`, `export-xodr`, `asset`, `priors` and
-//! `drive`. Each run is killed after 20 s; the exit code must be 0 or 2 (3
+//! `synth`, `train`, `run`, `eval-cases`, `bench-splat`, `export-xodr`, `asset`, `priors`,
+//! `drive`, `demo`, `eval-drive` and `bench-cases` (the last on `../shared/data`'s KITTI paths,
+//! skipped with a printed reason where they are absent). Each run is killed after 20 s; the exit code must be 0 or 2 (3
 //! also for `reason`), never a signal, 101 (panic) or 134 (abort).
 
+mod cli_support;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -108,6 +110,77 @@ fn numeric_flags_exit_0_2_or_3() {
             runs.push((drive.clone(), flag, vec![], sane, &[0, 2]));
         }
     }
+    // Every other numeric flag of the commands above (issue 56: "numeric flags of every command").
+    let synth4 = vec!["synth", "--out", &o_s, "--force", "--cameras", "1"];
+    for (flag, sane, fixed) in [
+        ("--frames", "3", vec!["--width", "16", "--height", "16"]),
+        ("--width", "16", vec!["--frames", "3", "--height", "16"]),
+        ("--height", "16", vec!["--frames", "3", "--width", "16"]),
+        ("--seed", "1", vec!["--frames", "3", "--width", "16", "--height", "16"]),
+    ] {
+        runs.push((synth4.clone(), flag, fixed, sane, &[0, 2]));
+    }
+    let train_m = vec!["train", s(&scene), "--out", &o_m, "--force", "--iters", "1"];
+    runs.push((train_m.clone(), "--scale", vec![], "1", &[0, 2]));
+    runs.push((train_m.clone(), "--seed", vec![], "1", &[0, 2]));
+    runs.push((reason_at.clone(), "--seed", vec!["--t0", "1"], "1", &[0, 2, 3]));
+    let o_video = out("v.mp4");
+    let ex_d = format!("{o_run_d}/executed.json");
+    if Path::new(&ex_d).is_file() {
+        let video = vec!["video", &ex_d, "--scene", s(&scene), "--model", s(&model), "--out", &o_video, "--force"];
+        let video: Vec<&str> = video.into_iter().chain(["--layouts", "compare:FRONT", "--png"]).collect();
+        for (flag, sane) in [("--fps", "2"), ("--scale", "1"), ("--lead-in", "0")] {
+            runs.push((video.clone(), flag, vec![], sane, &[0, 2]));
+        }
+    }
+    let o_lib_h = out("lib-h");
+    let harvest = vec!["asset", "harvest", s(&scene), "--model", s(&model), "--library", &o_lib_h, "--force"];
+    for (flag, sane) in [("--max-closest-m", "15"), ("--min-azimuth-bins", "3"), ("--min-hull-px", "10")] {
+        runs.push((harvest.clone(), flag, vec![], sane, &[0, 2]));
+    }
+    // The rest of issue 56: demo, eval-drive and bench-cases.
+    let (o_demo, o_ed, o_bc) = (out("demo"), out("eval-drive"), out("bench-cases"));
+    // A real log is trained at a quarter of its cameras' size: 96x64 keeps 24x16.
+    let demo_scene = out("demo-scene");
+    let synth3 = ["synth", "--out", &demo_scene, "--frames", "30", "--width", "96", "--height", "64", "--cameras", "1"];
+    assert_eq!(exit_code(&synth3), Some(0));
+    let demo = vec!["demo", "--input", &demo_scene, "--out", &o_demo, "--force", "--no-auto-replace"];
+    runs.push((demo.clone(), "--iters", vec![], "1", &[0, 2]));
+    runs.push((demo.clone(), "--seed", vec!["--iters", "1"], "1", &[0, 2]));
+    if Path::new(&o_run_d).join("scenario.json").is_file() {
+        let ed =
+            vec!["eval-drive", &o_run_d, "--scene", s(&scene), "--policies", "constant", "--out", &o_ed, "--force"];
+        for (flag, sane) in [("--dt", "0.1"), ("--lead-in", "1"), ("--tail", "1"), ("--policy-timeout", "10")] {
+            runs.push((ed.clone(), flag, vec![], sane, &[0, 2]));
+        }
+    }
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if data.join("kitti/poses/00.txt").is_file() {
+        // Every flag's own default left out of the base (a flag given twice is a usage error).
+        let base = [
+            ("--sources", "kitti"),
+            ("--kitti-windows", "1"),
+            ("--kitti-window-s", "5"),
+            ("--perturbations", "none"),
+            ("--behaviors", "sudden_braking"),
+            ("--t0", "2"),
+            ("--refine-rounds", "0"),
+        ];
+        for (flag, sane) in [
+            ("--seed", "1"),
+            ("--kitti-windows", "1"),
+            ("--kitti-window-s", "5"),
+            ("--refine-rounds", "0"),
+            ("--t0", "2"),
+            ("--horizon", "5"),
+        ] {
+            let mut bc = vec!["bench-cases", "--data", s(&data), "--out", &o_bc, "--force"];
+            bc.extend(base.iter().filter(|(f, _)| *f != flag).flat_map(|(f, v)| [*f, *v]));
+            runs.push((bc, flag, vec![], sane, &[0, 2]));
+        }
+    } else {
+        cli_support::fuzz_log(&format!("SKIP: fuzz numeric-args of bench-cases: {} absent", data.display()));
+    }
     let mut n = 0;
     for (before, flag, after, sane, allowed) in &runs {
         // The command itself is right: with a sane value it succeeds (so a refusal below is the
@@ -126,5 +199,5 @@ fn numeric_flags_exit_0_2_or_3() {
             );
         }
     }
-    println!("fuzz numeric-args: {n} cases");
+    cli_support::fuzz_log(&format!("fuzz numeric-args: {n} cases"));
 }

@@ -10,6 +10,7 @@
 
 #[path = "fuzz_readers/batch.rs"]
 mod batch;
+mod cli_support;
 #[path = "fuzz_readers/files.rs"]
 mod files;
 #[path = "fuzz_readers/ingest.rs"]
@@ -208,7 +209,12 @@ fn fuzz_files(
         prop_assert!(over == 0, "{}: an allocation of {over} bytes (budget {ALLOC_BUDGET})", files[k].0);
         Ok(())
     });
-    println!("fuzz {target}: {} cases, {} ok, {} refused", ok.get() + refused.get(), ok.get(), refused.get());
+    cli_support::fuzz_log(&format!(
+        "fuzz {target}: {} cases, {} ok, {} refused",
+        ok.get() + refused.get(),
+        ok.get(),
+        refused.get()
+    ));
     if let Err(e) = result {
         panic!("fuzz {target}: {e}");
     }

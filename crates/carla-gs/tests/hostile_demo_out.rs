@@ -85,7 +85,7 @@ fn no_command_writes_its_out_inside_its_input() {
     let before = listing(t.path());
     let (episode, replaced) = (scene.join("episode"), model.join("replaced"));
     let drive = ["drive", s(&model), "--model", s(&model), "--scene", s(&scene), "--policy", "log", "--out"];
-    let commands: [&[&str]; 8] = [
+    let commands: [&[&str]; 9] = [
         &[&drive[..], &[s(&episode)]].concat(),
         &["eval-drive", s(&model), "--scene", s(&scene), "--out", s(&episode)],
         &["replace", s(&model), "--track", "t", "--asset", "a", "--out", s(&replaced), "--force"],
@@ -94,6 +94,7 @@ fn no_command_writes_its_out_inside_its_input() {
         &["ablate", s(&scene), "--out", s(&inside), "--iters", "1"],
         &["eval-cases", s(&scene), "--agents", "planner", "--t0", "1", "--out", s(&inside)],
         &["run", s(&scene), "--model", s(&model), "--behavior", "sudden_braking", "--out", s(&run_out)],
+        &["bench-cases", "--data", s(&scene), "--out", s(&inside)],
     ];
     for args in commands {
         refused(carla_gs(args), &["--out", "inside the input directory"]);
@@ -102,4 +103,59 @@ fn no_command_writes_its_out_inside_its_input() {
     // Replacing an --out that holds the input would delete it.
     refused(carla_gs(&["ablate", s(&scene), "--out", s(t.path()), "--force"]), &["holds the input"]);
     assert_eq!(listing(t.path()), before);
+}
+
+/// The entries beside `dir` whose names start with a dot (our staging and set-aside folders).
+fn dot_entries(dir: &Path) -> Vec<String> {
+    let parent = dir.parent().unwrap();
+    let names = std::fs::read_dir(parent).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned());
+    names.filter(|n| n.starts_with('.')).collect()
+}
+
+/// `demo --force` over a finished demo: killed at several points it leaves the finished demo as
+/// it was (the new one is built beside it); let finish, it replaces it whole, leaving nothing
+/// beside it.
+#[test]
+fn demo_force_builds_beside_the_old_demo_and_swaps_it_in_whole() {
+    let t = tempfile::tempdir().unwrap();
+    // A real log is trained at a quarter of its cameras' size: 96x64 keeps 24x16.
+    let scene = t.path().join("scene");
+    let args = ["synth", "--out", s(&scene), "--frames", "30", "--width", "96", "--height", "64", "--cameras", "1"];
+    ok(carla_gs(&args));
+    let out = t.path().join("demo-out");
+    let args = |force: bool| {
+        let mut v = vec!["demo", "--input", s(&scene), "--out", s(&out), "--iters", "1", "--no-auto-replace"];
+        v.extend(force.then_some("--force"));
+        v
+    };
+    ok(carla_gs(&args(false)));
+    let demo_json = std::fs::read_to_string(out.join("demo.json")).unwrap();
+    // The finished demo's result (the marker written as it starts says `"complete": false`).
+    let finished = |j: &str| j.contains("carla-gs-demo/1") && j.contains("\"cases\"") && !j.contains("\"complete\"");
+    assert!(finished(&demo_json), "{demo_json}");
+    let before = listing(&out);
+    for ms in [300u64, 2500] {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_carla-gs"))
+            .args(args(true))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(ms));
+        let _ = child.kill();
+        let status = child.wait().unwrap();
+        if status.success() {
+            // It finished first: replaced whole; the old listing no longer applies.
+            break;
+        }
+        assert_eq!(listing(&out), before, "demo --force killed after {ms} ms changed the finished demo");
+    }
+    // Let finish: the old demo's files are gone with it (replaced whole), nothing is left beside.
+    std::fs::write(out.join("left-by-the-old-demo.txt"), b"old").unwrap();
+    ok(carla_gs(&args(true)));
+    assert!(!out.join("left-by-the-old-demo.txt").exists(), "--force replaces the old demo whole");
+    let demo_json = std::fs::read_to_string(out.join("demo.json")).unwrap();
+    assert!(finished(&demo_json), "{demo_json}");
+    assert!(out.join("report.html").is_file());
+    assert_eq!(dot_entries(&out), Vec::<String>::new(), "staging left beside --out");
 }

@@ -114,3 +114,72 @@ fn edited_shard_records_and_case_files_are_refused() {
     });
     refused(tables(&d, t), &["case.json", "success_center", "MinTTC"]);
 }
+
+/// The tables `plant_old` plants (those `tables` writes but its plot and report.json).
+const TABLES: [&str; 6] = ["table1.md", "table1.csv", "table1_paired.md", "why_no_plan.md", "table2.md", "summary.md"];
+
+/// Whether the files `names` of `dir` are the planted earlier set (`old`), none of it (`new`) or
+/// both (`mixed`); and whether `report.json` is there.
+fn table_state(dir: &Path, names: &[&str]) -> (&'static str, bool) {
+    let old: Vec<bool> = names.iter().filter_map(|n| std::fs::read(dir.join(n)).ok()).map(|b| b == b"old").collect();
+    let state = match (old.iter().all(|o| *o), old.iter().all(|o| !o)) {
+        (true, _) => "old",
+        (_, true) => "new",
+        _ => "mixed",
+    };
+    (state, dir.join("report.json").is_file())
+}
+
+#[test]
+fn a_killed_tables_leaves_the_old_set_or_the_new_and_a_rerun_completes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = tmp.path();
+    let base = shards(t);
+    // The delays cover the merge, the plot and the moves (a whole run takes a few hundred ms).
+    let delays_ms = [0u64, 5, 15, 30, 60, 100, 150, 250, 400, 700];
+    for (name, beside_shards) in [("beside-shards", true), ("tables-only", false)] {
+        let shards_dir = copy(&base, t, name);
+        let out = if beside_shards { shards_dir.clone() } else { t.join(format!("{name}-out")) };
+        // Beside shards, report.json is planted as an old file too (the shard records make the
+        // folder ours); a tables-only folder is ours by a report.json that reads as one.
+        let names: Vec<&str> = TABLES.iter().copied().chain(beside_shards.then_some("report.json")).collect();
+        let mut seen = std::collections::BTreeSet::new();
+        for ms in delays_ms {
+            ok(carla_gs(&["tables", s(&shards_dir), "--out", s(&out)]));
+            for n in &names {
+                std::fs::write(out.join(n), b"old").unwrap();
+            }
+            let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_carla-gs"))
+                .args(["tables", s(&shards_dir), "--out", s(&out)])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .unwrap();
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+            let _ = child.kill();
+            child.wait().unwrap();
+            let (state, report) = table_state(&out, &names);
+            if beside_shards {
+                // report.json is removed before the first move and moved in last: with it there,
+                // the set is whole, old or new.
+                assert!(!(report && state == "mixed"), "{name}, killed after {ms} ms: a mixed set with report.json");
+            } else {
+                // Replaced in one rename.
+                assert!(report && state != "mixed", "{name}, killed after {ms} ms: {state}, report.json {report}");
+            }
+            seen.insert(state);
+            // A re-run completes, with nothing of ours left beside --out.
+            ok(carla_gs(&["tables", s(&shards_dir), "--out", s(&out)]));
+            assert_eq!(table_state(&out, &names), ("new", true), "{name}: the re-run after a kill at {ms} ms");
+            let leftovers: Vec<String> = std::fs::read_dir(out.parent().unwrap())
+                .unwrap()
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with('.'))
+                .collect();
+            assert!(leftovers.is_empty(), "{name}: left beside --out: {leftovers:?}");
+        }
+        // The kills hit before and after the moves at least (the old set, then the new one).
+        assert!(seen.contains("old") && seen.contains("new"), "{name}: kills only saw {seen:?}");
+    }
+}

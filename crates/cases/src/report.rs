@@ -115,6 +115,23 @@ pub fn summary_markdown(r: &Report) -> String {
     s
 }
 
+/// Every file [`write`] may write at the top of an output, `report.json` (the one that says the
+/// set is whole) last.
+pub const FILES: [&str; 12] = [
+    "table1.md",
+    "table1.csv",
+    "table1_paired.md",
+    "table1_paired.csv",
+    "why_no_plan.md",
+    "table2.md",
+    "table2.csv",
+    "table_llm_validity.md",
+    "table_llm_validity.csv",
+    "summary.md",
+    "table1.png",
+    "report.json",
+];
+
 pub fn write(out: &Path, r: &Report, plots: bool) -> Result<(), EvalError> {
     let w = |name: &str, text: String| scene::write_file_atomic(&out.join(name), text.as_bytes());
     w("table1.md", tables::table1_markdown(&r.table1))?;

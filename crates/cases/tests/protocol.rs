@@ -58,11 +58,26 @@ fn same_attempts_same_window_and_honest_baselines() {
         assert_eq!(list(a), list(AgentName::Planner), "{}", a.as_str());
     }
 
-    // Every Table I row counts over all attempts; every attempt ends one way.
+    // Every Table I row counts over all attempts; every attempt ends one way. The rows that split
+    // an agent's plans by adversary (logged, inserted: the standing ego of one scene gets an
+    // inserted car behind it) share the agent's no-plan counts and split its planned ones.
+    use cases::tables::{INSERTED_ROWS, LOGGED_ROWS};
     for row in &r.table1 {
         assert_eq!(row.attempts, n, "{} {}", row.agent.as_str(), row.variant);
-        assert_eq!(row.planned + row.no_feasible + row.failed, n);
         assert!(row.verified_k <= row.zone_hit_k.min(row.success_k));
+        if row.variant.ends_with(LOGGED_ROWS) || row.variant.ends_with(INSERTED_ROWS) {
+            continue;
+        }
+        assert_eq!(row.planned + row.no_feasible + row.failed, n, "{} {}", row.agent.as_str(), row.variant);
+        let part = |suffix: &str| {
+            let v = format!("{}{suffix}", row.variant);
+            r.table1.iter().find(|x| x.agent == row.agent && x.variant == v)
+        };
+        if let (Some(logged), Some(inserted)) = (part(LOGGED_ROWS), part(INSERTED_ROWS)) {
+            assert_eq!(logged.planned + inserted.planned, row.planned, "{} {}", row.agent.as_str(), row.variant);
+            assert_eq!((logged.no_feasible, logged.failed), (row.no_feasible, row.failed));
+            assert_eq!((inserted.no_feasible, inserted.failed), (row.no_feasible, row.failed));
+        }
     }
     for f in ["table1.md", "table1_paired.md", "table1_paired.csv", "why_no_plan.md"] {
         assert!(tmp.path().join(f).is_file(), "{f} missing");

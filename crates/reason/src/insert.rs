@@ -214,8 +214,8 @@ fn poses(world: &World, path: &LanePath, ego_s: &[f64], slot: &Slot, height: f64
 }
 
 /// Every admissible placement for the options' behaviour, in the order tried: each on a lane
-/// that exists there, clear of every logged road user and the ego up to t0. Empty when the ego
-/// hardly moves, or nothing fits.
+/// that exists there, clear of every logged road user and the ego up to t0. Empty when nothing
+/// fits.
 pub fn placements(scene: &Scene, o: &ReasonOptions) -> Vec<Placement> {
     placements_in(scene, o, None)
 }
@@ -240,6 +240,10 @@ pub fn placements_in(scene: &Scene, o: &ReasonOptions, streets: Option<&Streets>
             break;
         }
         let poses = poses(&world, path, ego_s, &slot, size[2]);
+        if let Err(why) = positioned(&world, b, &poses, size) {
+            tracing::debug!(lane = slot.lane, motion = ?slot.motion, why, "insertion slot: not positioned at t0");
+            continue;
+        }
         let reverse = matches!(slot.motion, Motion::Oncoming { .. });
         let parked = slot.entry == Entry::Parked;
         let support = lane_supported(&world, path, seen, &poses, slot.d, reverse, parked);
@@ -258,6 +262,24 @@ pub fn placements_in(scene: &Scene, o: &ReasonOptions, streets: Option<&Streets>
         out.push(Placement { id: id.clone(), inserted, scene: s });
     }
     out
+}
+
+/// Whether the car at `poses` stands at t0 where the planner looks for the behaviour's adversary
+/// ([`crate::behavior::candidate_zones`], in the ego's frame at t0): a slot along a bending path
+/// can end up beside the ego's heading line, where no plan would start from it.
+fn positioned(world: &World, b: Behavior, poses: &[InsertedPose], size: [f64; 3]) -> Result<(), String> {
+    let run: Vec<scene::motion::Pose2> =
+        poses.iter().map(|p| scene::motion::Pose2 { t: p.t, x: p.x, y: p.y, heading: p.heading }).collect();
+    let now = crate::world::kin_at(&run, world.t0).ok_or("no pose at t0")?;
+    let v = crate::world::Vehicle {
+        id: String::new(),
+        class: ObjectClass::Vehicle,
+        length: size[0],
+        width: size[1],
+        run: Vec::new(),
+        now,
+    };
+    crate::behavior::candidate_zones(world, &v, b).map(|_| ())
 }
 
 /// The track an inserted road user adds to its scene (a state at every frame).

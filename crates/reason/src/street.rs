@@ -23,7 +23,8 @@ pub struct Street {
 }
 
 impl Street {
-    /// `None` when the ego hardly moves over the log (no path to place anyone along).
+    /// `None` only when the ego's path cannot be built (a degenerate heading); an ego that hardly
+    /// moves over the log gets the line along its heading.
     pub fn of(world: &World) -> Option<Street> {
         let (path, ego_s) = ego_path(world)?;
         let seen = traffic(world, &path);
@@ -58,7 +59,8 @@ impl Streets {
 }
 
 /// The ego's logged path (extended straight at both ends) as a reference path, and the ego's arc
-/// length on it at each frame's time; `None` when the ego hardly moves.
+/// length on it at each frame's time. An ego that moves less than 5 m over the log gets the
+/// straight line along its last heading.
 fn ego_path(world: &World) -> Option<(LanePath, Vec<f64>)> {
     let scene = world.scene;
     let mut pts: Vec<DVec2> = Vec::new();
@@ -69,11 +71,19 @@ fn ego_path(world: &World) -> Option<(LanePath, Vec<f64>)> {
     }
     let n = pts.len();
     if n < 2 || pts[0].distance(pts[n - 1]) < 5.0 {
-        return None;
+        // The ego waits (at a light, in a queue) or is parked: its lane is the line along its
+        // heading, where a car may come up behind it, pass it or come towards it.
+        let last = world.ego_series.last()?;
+        let dir = DVec2::new(last.heading.cos(), last.heading.sin());
+        if !dir.is_finite() {
+            return None;
+        }
+        pts = vec![last.position() - dir * EXTEND_M, last.position(), last.position() + dir * EXTEND_M];
+    } else {
+        let (head, tail) = ((pts[1] - pts[0]).normalize(), (pts[n - 1] - pts[n - 2]).normalize());
+        pts.insert(0, pts[0] - head * EXTEND_M);
+        pts.push(pts[n] + tail * EXTEND_M);
     }
-    let (head, tail) = ((pts[1] - pts[0]).normalize(), (pts[n - 1] - pts[n - 2]).normalize());
-    pts.insert(0, pts[0] - head * EXTEND_M);
-    pts.push(pts[n] + tail * EXTEND_M);
     let path = LanePath::from_points(pts, vec![])?;
     let s = scene.frames.iter().map(|f| path.frenet(world.ego_pose(f.timestamp_s).position()).x).collect();
     Some((path, s))

@@ -197,3 +197,53 @@ fn a_city_sized_map_is_planned_on() {
         other => panic!("{other:?}"),
     }
 }
+
+/// The ego waiting (at a light, in a queue) the whole log: its lane is the line along its heading
+/// (was: no street at all, so "no lane with room" for every behaviour on the shared WOMD scene
+/// whose ego stands still). A car behind it may come up and hit it; nothing ahead can brake into
+/// a standing ego.
+#[test]
+fn a_standing_ego_gets_an_inserted_car_behind_it() {
+    let mut s = road(vec![]);
+    for f in &mut s.frames {
+        f.world_from_ego = Transform3::from_yaw_translation(0.3, DVec3::new(5.0, 2.0, 0.0));
+    }
+    let o = options(Behavior::RearTailgating, InsertMode::Fallback);
+    let all = placements(&s, &o);
+    assert!(!all.is_empty(), "a place behind the standing ego");
+    for p in &all {
+        // Behind it, on the line along its heading (0.3 rad), clear of it.
+        let q = p.inserted.poses[20];
+        let rel = DVec2::new(q.x - 5.0, q.y - 2.0);
+        let (along, across) = (rel.dot(DVec2::from_angle(0.3)), rel.perp_dot(DVec2::from_angle(0.3)));
+        assert!(along < -(4.5 + 2.0) / 2.0 && across.abs() < 0.5, "{q:?}");
+    }
+    match reason(&s, &o, Agent::Planner).unwrap() {
+        Outcome::Plan { plan, .. } => assert!(plan.inserted.is_some(), "{plan:?}"),
+        other => panic!("expected an inserted plan behind the standing ego: {other:?}"),
+    }
+}
+
+/// On a bending path a slot far along it ends up off the ego's heading line at t0, where the
+/// planner would not take it as positioned: such a slot is never offered (it took one of the
+/// few placements kept and then failed as "not positioned").
+#[test]
+fn every_placement_is_positioned_for_its_behaviour() {
+    // The ego turns left on a 25 m radius at 10 m/s.
+    let mut s = road(vec![]);
+    for f in &mut s.frames {
+        let a = (f.timestamp_s - 100.0) * 10.0 / 25.0;
+        let p = DVec3::new(25.0 * a.sin(), 25.0 * (1.0 - a.cos()), 0.0);
+        f.world_from_ego = Transform3::from_yaw_translation(a, p);
+    }
+    for b in [Behavior::SuddenBraking, Behavior::RearTailgating, Behavior::SuddenStart, Behavior::SidePass] {
+        let o = options(b, InsertMode::Always);
+        let world = reason::world::World::new(&s, o.t0, o.radius).unwrap();
+        for p in placements(&s, &o) {
+            let w = reason::world::World::new(&p.scene, o.t0, o.radius).unwrap();
+            let v = w.actors().find(|v| v.id == p.id).expect("the inserted car is an actor");
+            let zones = reason::behavior::candidate_zones(&world, v, b);
+            assert!(zones.is_ok(), "{}: {} at {:?}: {zones:?}", b.as_str(), p.inserted.lane, v.now.p);
+        }
+    }
+}

@@ -5,8 +5,9 @@
 //! - `--resume` of an unfinished run trains in place after removing the temporary files a killed
 //!   run left in it (`.*.tmp`, `.tmp*`); nothing else reads them.
 //! - A run killed before its first checkpoint leaves only our `config.toml` (and perhaps
-//!   temporaries): nothing was trained, so any run into it (plain, `--resume` or `--force`)
-//!   starts afresh in place ([`is_unstarted_run`]); no clean-up by hand is needed.
+//!   temporaries), or, killed before that, an empty directory: nothing was trained, so any run
+//!   into it (plain, `--resume` or `--force`) starts afresh in place ([`is_unstarted_run`]); no
+//!   clean-up by hand is needed. An empty `--out` is trained in place too.
 //! - An existing model (or unfinished run) is replaced only with `--force` (`ForceMode::Replace`)
 //!   and only if it is ours (`model.json` of our format, or a `checkpoint.bin` with our magic);
 //!   the new model is built in a staging directory beside it and renamed over it in one step at
@@ -68,9 +69,28 @@ pub fn is_unstarted_run(dir: &Path) -> bool {
     config && crate::model_io::load_config(dir).is_ok()
 }
 
+/// Whether `dir` is a real directory holding nothing but temporary files: a new `--out` made by
+/// a person, or one a run killed before it wrote its `config.toml` left (the scene's data had
+/// loaded, the directory was made).
+fn holds_nothing(dir: &Path) -> bool {
+    if !std::fs::symlink_metadata(dir).is_ok_and(|m| m.is_dir()) {
+        return false;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return false };
+    entries
+        .flatten()
+        .all(|e| is_temporary(&e.file_name().to_string_lossy()) && e.file_type().is_ok_and(|t| t.is_file()))
+}
+
+/// Whether a run into `dir` has nothing to continue or replace: an unstarted run of ours
+/// ([`is_unstarted_run`]) or a directory holding nothing but temporary files.
+pub fn not_started(dir: &Path) -> bool {
+    is_unstarted_run(dir) || holds_nothing(dir)
+}
+
 /// Decides where a run into `out` writes. `resume` runs continue `out`'s checkpoint.
 pub fn plan(out: &Path, resume: bool, force: ForceMode) -> Result<WorkDir, ReconError> {
-    if is_unstarted_run(out) {
+    if not_started(out) {
         remove_stray_temporaries(out);
         return Ok(WorkDir::InPlace { dir: out.to_path_buf(), created: false });
     }

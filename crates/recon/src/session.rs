@@ -98,8 +98,9 @@ pub fn train<B: Backend>(req: TrainRequest, backend: B, progress: &ProgressBar) 
     }
     let loaded = scene::load_scene(req.scene_dir)?;
     let run = resume::identity(req.scene_dir, &loaded, &cfg)?;
-    // A run killed before its first checkpoint has nothing to resume: it starts afresh.
-    let resumed = match req.resume && !crate::out_dir::is_unstarted_run(req.out_dir) {
+    // A run killed before its first checkpoint (or an empty directory) has nothing to resume:
+    // it starts afresh.
+    let resumed = match req.resume && !crate::out_dir::not_started(req.out_dir) {
         true => Some(resume::open(req.out_dir, &cfg, &run, &loaded)?),
         false => None,
     };

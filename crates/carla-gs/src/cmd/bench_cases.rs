@@ -5,6 +5,10 @@
 //! (`cases::run_eval`, plots off) and `bench.json` / `bench.md` report the table per behaviour,
 //! per corpus subset and in total (`cases::stress::bench`). Reading the logs needs `ingest`, which
 //! `cases` must not import: that is why the corpus is assembled here.
+//!
+//! `--out` is new, empty or an earlier bench-cases output (its `bench.json`), which `--force`
+//! replaces; never inside `--data`. The run is built in a staging directory beside it and swapped
+//! in whole at the end, so a killed run leaves `--out` as it was.
 use anyhow::Context;
 use cases::runner::CaseConfig;
 use cases::spec::{AgentName, T0Spec};
@@ -53,6 +57,17 @@ pub struct Args {
     /// Evaluation horizon (s from t0) or `plan`.
     #[arg(long, default_value = "5")]
     horizon: String,
+    /// Replace an earlier bench-cases output (a folder with our bench.json) whole.
+    #[arg(long)]
+    force: bool,
+}
+
+/// A bench-cases output: a `bench.json` that reads as one.
+const BENCH_OUT: super::out_dir::Kind =
+    super::out_dir::Kind { what: "a bench-cases output", marker: "bench.json of bench-cases", ours: is_bench_out };
+
+fn is_bench_out(dir: &Path) -> bool {
+    scene::format::read_json::<stress::bench::BenchReport>(&dir.join("bench.json")).is_ok()
 }
 
 fn list<T: std::str::FromStr<Err = String>>(s: &str) -> anyhow::Result<Vec<T>> {
@@ -161,6 +176,7 @@ fn kitti(data: &Path, windows: usize, len_s: f64) -> anyhow::Result<Vec<Scene>> 
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let start = Instant::now();
+    super::out_dir::check_replaceable(&a.out, &[&a.data], a.force, &BENCH_OUT)?;
     let agents: Vec<AgentName> = list(&a.agents)?;
     anyhow::ensure!(
         !agents.iter().any(|g| g.is_llm()),
@@ -209,13 +225,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     let corpus_s = start.elapsed().as_secs_f64();
+    let staged = super::out_dir::stage(&a.out, &[&a.data], a.force, &BENCH_OUT)?;
     let reason = ReasonOptions::default();
     let cfg = EvalConfig {
         agents,
         behaviors,
         t0,
         seed: a.seed,
-        out: a.out.join("eval"),
+        out: staged.path().join("eval"),
         plots: false,
         case: CaseConfig {
             reason: reason.clone(),
@@ -242,9 +259,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut bench = stress::bench::bench_report(&report, &scenes, &labels, &reason, &a.t0, corpus_s);
     bench.bench_wall_s = start.elapsed().as_secs_f64();
     bench.skipped_copies = skipped;
-    scene::format::write_json_pretty(&a.out.join("bench.json"), &bench)?;
+    scene::format::write_json_pretty(&staged.path().join("bench.json"), &bench)?;
     let md = stress::bench_md::markdown(&bench);
-    scene::write_file_atomic(&a.out.join("bench.md"), md.as_bytes())?;
+    scene::write_file_atomic(&staged.path().join("bench.md"), md.as_bytes())?;
+    staged.commit()?;
     println!("{md}");
     println!("wrote {}/bench.json, bench.md and the harness's files under eval/", a.out.display());
     Ok(())

@@ -92,6 +92,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     if let Some(n) = a.iters {
+        // Checked before any stage runs (training would refuse it only after ingest and priors).
+        let max = recon::budget::MAX_ITERATIONS;
+        anyhow::ensure!((1..=max).contains(&n), "--iters {n}: expected 1 to {max} training iterations");
         cfg.train.iterations = n;
     }
     cfg.agent = a.agent.parse().map_err(anyhow::Error::msg)?;

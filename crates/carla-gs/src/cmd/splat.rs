@@ -4,6 +4,8 @@
 //! The camera JSON is `splat::Camera` (see its docs: width, height, fx, fy, cx, cy,
 //! camera_from_world as a row-major 4x4 in OpenCV axes, optional near and far); its image may
 //! have at most `render::budget::MAX_PIXELS` pixels.
+//! Each `--out` is a file of its own kind (a PNG; a bench-splat JSON) or new: anything else
+//! takes `--force` (`out_file`), and it is written whole or not at all.
 use anyhow::Context;
 use splat::backward::{backward_into, Gradients, Upstream};
 use splat::render::{render as rasterize, render_into, Context as RenderContext, Features, Image, RenderOptions};
@@ -24,6 +26,9 @@ pub struct RenderArgs {
     antialiased: bool,
     #[arg(long, value_enum, default_value = "cpu")]
     device: super::recon::Device,
+    /// Replace an existing --out that is not a PNG.
+    #[arg(long)]
+    force: bool,
 }
 
 fn read_camera(path: &PathBuf) -> anyhow::Result<splat::Camera> {
@@ -37,6 +42,8 @@ fn read_camera(path: &PathBuf) -> anyhow::Result<splat::Camera> {
 }
 
 pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    use super::out_file::{check_out_file, is_png};
+    check_out_file(&a.out, &[&a.model, &a.camera], a.force, "a PNG image", is_png)?;
     let cam = read_camera(&a.camera)?;
     let g = splat::ply::read_ply(&a.model)?;
     g.validate()?;
@@ -66,9 +73,9 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let bytes: Vec<u8> = img.rgb.iter().flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).context("image buffer size")?;
-    let tmp = a.out.with_extension("tmp.png");
-    buf.save(&tmp).with_context(|| format!("{}: cannot write", tmp.display()))?;
-    std::fs::rename(&tmp, &a.out).with_context(|| format!("{}: cannot write", a.out.display()))?;
+    let mut png = std::io::Cursor::new(Vec::new());
+    buf.write_to(&mut png, image::ImageFormat::Png).context("encode the PNG")?;
+    scene::write_file_atomic(&a.out, png.get_ref())?;
     println!("rendered {} Gaussians at {}x{} in {ms:.1} ms -> {}", g.len(), img.width, img.height, a.out.display());
     Ok(())
 }
@@ -92,6 +99,16 @@ pub struct BenchArgs {
     dump_dir: Option<PathBuf>,
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out that is not a bench-splat JSON.
+    #[arg(long)]
+    force: bool,
+}
+
+/// What bench-splat writes: a JSON object whose `benchmark` names the splat rasterizer.
+const BENCHMARK: &str = "splat rasterizer, forward and forward+backward per iteration";
+
+fn is_bench_splat(b: &[u8]) -> bool {
+    serde_json::from_slice::<serde_json::Value>(b).is_ok_and(|v| v["benchmark"] == BENCHMARK)
 }
 
 /// Timed iterations per case at most (a budget on time: the median settles long before).
@@ -185,6 +202,7 @@ fn bench_cuda(
 }
 
 pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
+    super::out_file::check_out_file(&a.out, &[], a.force, "a bench-splat JSON", is_bench_splat)?;
     let mut results = Vec::new();
     let devices: Vec<&str> = a.devices.split(',').map(str::trim).collect();
     if let Some(d) = devices.iter().find(|d| !matches!(**d, "cpu" | "cuda")) {
@@ -281,7 +299,7 @@ pub fn bench(a: BenchArgs) -> anyhow::Result<()> {
             "threads": threads, "speedup_forward": f / f32_, "speedup_forward_backward": b / b32});
         results.push(row);
     }
-    let json = serde_json::json!({"benchmark": "splat rasterizer, forward and forward+backward per iteration", "results": results});
+    let json = serde_json::json!({"benchmark": BENCHMARK, "results": results});
     scene::write_file_atomic(&a.out, &serde_json::to_vec_pretty(&json)?)?;
     println!("wrote {}", a.out.display());
     Ok(())

@@ -52,3 +52,15 @@ pub fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
     v.sort();
     v
 }
+
+/// Prints a line of the fuzz harness's log and appends it to `fuzz-log.txt` in cargo's
+/// scratch directory for integration tests (`target/tmp`), which `.ci/run` prints after the
+/// test run (so the harness's counts reach the log without running it twice).
+pub fn fuzz_log(line: &str) {
+    use std::io::Write;
+    println!("{line}");
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-log.txt");
+    if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(&path) {
+        let _ = writeln!(f, "{line}");
+    }
+}

@@ -30,7 +30,7 @@ fn fuzz_tfrecord_framing() {
 /// The first record of a shared Waymo file, fuzzed as a one-record file read by `read_scenes`.
 fn fuzz_first_record(target: &str, file: &str, expect: Expect) {
     let Some(path) = ingest::shared::data_path(&format!("waymo/{file}")) else {
-        println!("SKIP: fuzz {target}: ../shared/data/waymo/{file} absent");
+        super::cli_support::fuzz_log(&format!("SKIP: fuzz {target}: ../shared/data/waymo/{file} absent"));
         return;
     };
     let first = TfRecordReader::new(std::fs::File::open(path).unwrap()).next().unwrap().unwrap();
@@ -86,7 +86,7 @@ fn fuzz_folder(target: &str, dir: &Path, files: Vec<(String, Vec<u8>)>, expect: 
 
 fn fuzz_shared_folder(target: &str, rel: &str, mutable: &dyn Fn(&Path) -> bool, expect: Expect) {
     let Some(src) = ingest::shared::data_path(rel) else {
-        println!("SKIP: fuzz {target}: ../shared/data/{rel} absent");
+        super::cli_support::fuzz_log(&format!("SKIP: fuzz {target}: ../shared/data/{rel} absent"));
         return;
     };
     let tmp = tempfile::tempdir().unwrap();
