@@ -7,7 +7,7 @@
 //! files are listed unchanged after.
 
 mod cli_support;
-use cli_support::{carla_gs, listing, ok, refused, s};
+use cli_support::{carla_gs, killed_after, listing, ok, refused, s};
 use std::path::{Path, PathBuf};
 
 fn synth(t: &Path) -> PathBuf {
@@ -135,16 +135,7 @@ fn demo_force_builds_beside_the_old_demo_and_swaps_it_in_whole() {
     assert!(finished(&demo_json), "{demo_json}");
     let before = listing(&out);
     for ms in [300u64, 2500] {
-        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_carla-gs"))
-            .args(args(true))
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(ms));
-        let _ = child.kill();
-        let status = child.wait().unwrap();
-        if status.success() {
+        if killed_after(&args(true), ms) {
             // It finished first: replaced whole; the old listing no longer applies.
             break;
         }

@@ -5,7 +5,7 @@
 //! synthetic scene, `eval-cases` with the planner on sudden braking at t0 = 2 s, in two shards.
 
 mod cli_support;
-use cli_support::{carla_gs, ok, refused, s};
+use cli_support::{carla_gs, killed_after, ok, refused, s};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -149,15 +149,7 @@ fn a_killed_tables_leaves_the_old_set_or_the_new_and_a_rerun_completes() {
             for n in &names {
                 std::fs::write(out.join(n), b"old").unwrap();
             }
-            let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_carla-gs"))
-                .args(["tables", s(&shards_dir), "--out", s(&out)])
-                .stdout(std::process::Stdio::null())
-                .stderr(std::process::Stdio::null())
-                .spawn()
-                .unwrap();
-            std::thread::sleep(std::time::Duration::from_millis(ms));
-            let _ = child.kill();
-            child.wait().unwrap();
+            killed_after(&["tables", s(&shards_dir), "--out", s(&out)], ms);
             let (state, report) = table_state(&out, &names);
             if beside_shards {
                 // report.json is removed before the first move and moved in last: with it there,

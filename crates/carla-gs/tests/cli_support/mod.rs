@@ -64,3 +64,17 @@ pub fn fuzz_log(line: &str) {
         let _ = writeln!(f, "{line}");
     }
 }
+
+/// Runs the built `carla-gs` with `args` (output discarded) and kills it (SIGKILL) after `ms`
+/// milliseconds; whether it had already ended with exit code 0 by then.
+pub fn killed_after(args: &[&str], ms: u64) -> bool {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_carla-gs"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("run carla-gs");
+    std::thread::sleep(std::time::Duration::from_millis(ms));
+    let _ = child.kill();
+    child.wait().expect("wait for carla-gs").success()
+}
