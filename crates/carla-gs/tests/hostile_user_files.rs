@@ -165,3 +165,43 @@ fn batch_plan_never_overwrites_a_persons_plan_json() {
     ok(carla_gs(&["batch", "plan", s(&m), "--out", s(&out), "--force"]));
     assert_eq!(std::fs::read(out.join("thesis.tex")).unwrap(), b"\\section{mine}");
 }
+
+/// `drive-tables --out` wrote `drive-eval.json`, `table.md` and `table.csv` into any folder,
+/// a shard's own included (its record replaced by the merge). Now it is new, empty or an output
+/// of ours, replaced whole only with `--force`, and never one of its shards.
+#[test]
+fn drive_tables_keeps_a_persons_folder_and_its_shards() {
+    let t = tempfile::tempdir().unwrap();
+    let scene = synth(t.path());
+    let case = t.path().join("case1");
+    std::fs::create_dir_all(&case).unwrap();
+    let plan = case.join("scenario.json");
+    let reason = ["reason", s(&scene), "--t0", "1", "--behavior", "sudden_braking", "--agent", "planner"];
+    ok(carla_gs(&[&reason[..], &["--out", s(&plan)]].concat()));
+    ok(carla_gs(&["simulate", s(&plan), "--scene", s(&scene), "--out", s(&case.join("executed.json"))]));
+    let shard = t.path().join("shard0");
+    let eval = ["eval-drive", s(&case), "--scene", s(&scene), "--policies", "constant", "--shard", "0/1"];
+    ok(carla_gs(&[&eval[..], &["--out", s(&shard)]].concat()));
+    let tables =
+        |out: &Path, extra: &[&str]| carla_gs(&[&["drive-tables", s(&shard), "--out", s(out)][..], extra].concat());
+    // A person's folder: refused with or without --force, unchanged.
+    let mine = t.path().join("mine");
+    a_persons_folder(&mine, "table.md");
+    let before = listing(&mine);
+    for extra in [&[][..], &["--force"]] {
+        refused(tables(&mine, extra), &[s(&mine), "not a drive-tables output"]);
+        assert_eq!(listing(&mine), before);
+    }
+    // A shard itself: refused (its record would be replaced by the merge).
+    let shard_before = listing(&shard);
+    refused(tables(&shard, &["--force"]), &["is an input"]);
+    assert_eq!(listing(&shard), shard_before);
+    // New: written; again: only with --force, whole.
+    let out = t.path().join("merged");
+    ok(tables(&out, &[]));
+    assert!(out.join("table.md").is_file() && out.join("drive-eval.json").is_file());
+    std::fs::write(out.join("stale.txt"), b"from before").unwrap();
+    refused(tables(&out, &[]), &["pass --force"]);
+    ok(tables(&out, &["--force"]));
+    assert!(!out.join("stale.txt").exists(), "replaced whole");
+}

@@ -88,6 +88,30 @@ pub struct World<'a> {
     bystanders: std::sync::OnceLock<crate::clearance::Bystanders>,
 }
 
+/// Whether `track` may be within `radius` of `p` at `t0`, without building its runs: its pose
+/// then is interpolated between its last valid state at or before t0 and its first at or after
+/// (or is one of them), so it lies on the segment between their centres; a track whose segment
+/// is farther than `radius` (plus a millimetre for the time tolerance) is not a candidate, exactly
+/// as [`vehicle_at`] and the distance filter would find. Most of a city log's tracks are.
+fn may_be_near(scene: &Scene, track: &Track, t0: f64, p: DVec2, radius: f64) -> bool {
+    let (mut before, mut after) = (None, None);
+    for s in track.valid_states() {
+        let Some(f) = scene.frames.get(s.frame) else { continue };
+        let c = DVec2::new(s.center.x, s.center.y);
+        if f.timestamp_s <= t0 + 1e-9 {
+            before = Some(c);
+        }
+        if f.timestamp_s >= t0 - 1e-9 {
+            after = Some(c);
+            break;
+        }
+    }
+    let (Some(a), Some(b)) = (before, after) else { return false };
+    let ab = b - a;
+    let k = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    (a + ab * k).distance(p) <= radius + 1e-3
+}
+
 fn vehicle_at(scene: &Scene, track: &Track, t0: f64) -> Option<Vehicle> {
     let run = scene.track_segments(track).into_iter().find(|r| r[0].t <= t0 + 1e-9 && r[r.len() - 1].t >= t0 - 1e-9)?;
     let now = kin_at(&run, t0).or_else(|| {
@@ -110,6 +134,7 @@ impl<'a> World<'a> {
                 .tracks
                 .iter()
                 .filter(|t| keep(t.class) && scene.ego.track_id.as_deref() != Some(t.id.as_str()))
+                .filter(|t| may_be_near(scene, t, t0, ego_now.p, radius))
                 .filter_map(|t| vehicle_at(scene, t, t0))
                 .filter(|v| v.now.p.distance(ego_now.p) <= radius)
                 .collect();

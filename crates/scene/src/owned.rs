@@ -18,8 +18,9 @@ pub fn has_format_marker(dir: &Path, file: &str, format: &str) -> bool {
     v.get("format").and_then(|f| f.as_str()) == Some(format)
 }
 
-/// Refuses to write `dest` unless it is absent, or `force` is given and `dest` is a directory
-/// that `ours` recognises (`what` names the kind of output, `marker` the marker looked for).
+/// Refuses to write `dest` unless it is absent or an empty directory, or `force` is given and
+/// `dest` is a directory that `ours` recognises (`what` names the kind of output, `marker` the
+/// marker looked for).
 pub fn check_replaceable(
     dest: &Path,
     force: bool,
@@ -32,6 +33,10 @@ pub fn check_replaceable(
     }
     if !dest.is_dir() {
         return Err(SceneError::NotADirectory { path: dest.to_path_buf() });
+    }
+    // A new, empty folder made for the output (or left empty by a run killed early).
+    if std::fs::read_dir(dest).is_ok_and(|mut entries| entries.next().is_none()) {
+        return Ok(());
     }
     if !force {
         return Err(SceneError::AlreadyExists { path: dest.to_path_buf() });
@@ -118,6 +123,17 @@ pub(crate) fn file_name(path: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_empty_directory_is_as_good_as_none() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("new");
+        std::fs::create_dir(&dir).unwrap();
+        assert!(check_replaceable(&dir, false, "a scene", "scene.json", |_| false).is_ok());
+        std::fs::write(dir.join("notes.txt"), b"mine").unwrap();
+        let refused = check_replaceable(&dir, false, "a scene", "scene.json", |_| false);
+        assert!(matches!(refused, Err(SceneError::AlreadyExists { .. })));
+    }
 
     #[test]
     fn only_marked_directories_are_replaceable() {

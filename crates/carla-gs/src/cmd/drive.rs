@@ -1,6 +1,7 @@
 //! `drive` (one closed-loop episode of a corner case), `eval-drive` (many cases x policies, the
 //! table per behaviour and policy, shards) and `drive-tables` (merge shards). Argument parsing
-//! only; the `drive` crate does the work (docs/drive.md).
+//! only; the `drive` crate does the work (docs/drive.md). `drive-tables --out` is new, empty or
+//! an earlier output of ours (replaced whole with `--force`), never one of its shards.
 
 use super::recon::{open_cuda, Device};
 use anyhow::Context;
@@ -96,9 +97,21 @@ pub struct TablesArgs {
     /// `eval-drive --shard` output directories.
     #[arg(required = true)]
     shards: Vec<PathBuf>,
+    /// New, empty, or an earlier drive-tables or eval-drive output (replaced whole with --force);
+    /// never one of the shards.
     #[arg(long)]
     out: PathBuf,
+    /// Replace an earlier output of ours at --out whole.
+    #[arg(long)]
+    force: bool,
 }
+
+/// What drive-tables and eval-drive write: `drive-eval.json` of our format.
+const DRIVE_EVAL_OUT: super::out_dir::Kind = super::out_dir::Kind {
+    what: "a drive-tables output",
+    marker: "drive-eval.json of format carla-gs-drive-eval/1",
+    ours: |dir| scene::has_format_marker(dir, "drive-eval.json", drive::eval::EVAL_FORMAT),
+};
 
 fn settings(a: &LoopArgs, scene: &scene::Scene) -> anyhow::Result<EpisodeSettings> {
     render::budget::check_scale("--scale", a.scale)?;
@@ -254,9 +267,13 @@ pub fn eval(a: EvalArgs) -> anyhow::Result<()> {
 }
 
 pub fn tables(a: TablesArgs) -> anyhow::Result<()> {
+    let shards: Vec<&Path> = a.shards.iter().map(|p| p.as_path()).collect();
+    super::out_dir::check_replaceable(&a.out, &shards, a.force, &DRIVE_EVAL_OUT)?;
     let merged = drive::eval::merge(&a.shards)?;
-    std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
-    let rows = drive::eval::write_tables(&a.out, &merged)?;
+    // Built beside --out and swapped in whole: a kill leaves the old tables or the new ones.
+    let staged = super::out_dir::stage(&a.out, &shards, a.force, &DRIVE_EVAL_OUT)?;
+    let rows = drive::eval::write_tables(staged.path(), &merged)?;
+    staged.commit()?;
     println!("{}", drive::eval::markdown(&rows));
     println!("wrote {}", a.out.display());
     Ok(())
