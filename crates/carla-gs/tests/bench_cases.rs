@@ -5,6 +5,7 @@
 //! subsets, cut-in adjacency within the cut-in attempts). Skips with a printed reason where
 //! `../shared/data` is absent.
 
+mod cli_support;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
@@ -142,11 +143,6 @@ fn bench_out_is_new_empty_or_ours_replaced_whole_with_force() {
     assert!(bench(&forced).status.success());
     assert!(out.join("bench.json").is_file() && out.join("eval/report.json").is_file());
     assert!(!out.join("stale.txt").exists(), "replaced whole");
-    let beside: Vec<String> = std::fs::read_dir(tmp.path())
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with('.'))
-        .collect();
+    let beside = cli_support::dot_entries_beside(&out);
     assert!(beside.is_empty(), "staging left beside --out: {beside:?}");
 }

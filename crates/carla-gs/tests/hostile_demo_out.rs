@@ -7,7 +7,7 @@
 //! files are listed unchanged after.
 
 mod cli_support;
-use cli_support::{carla_gs, killed_after, listing, ok, refused, s};
+use cli_support::{carla_gs, dot_entries_beside, killed_after, listing, ok, refused, s};
 use std::path::{Path, PathBuf};
 
 fn synth(t: &Path) -> PathBuf {
@@ -105,13 +105,6 @@ fn no_command_writes_its_out_inside_its_input() {
     assert_eq!(listing(t.path()), before);
 }
 
-/// The entries beside `dir` whose names start with a dot (our staging and set-aside folders).
-fn dot_entries(dir: &Path) -> Vec<String> {
-    let parent = dir.parent().unwrap();
-    let names = std::fs::read_dir(parent).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned());
-    names.filter(|n| n.starts_with('.')).collect()
-}
-
 /// `demo --force` over a finished demo: killed at several points it leaves the finished demo as
 /// it was (the new one is built beside it); let finish, it replaces it whole, leaving nothing
 /// beside it.
@@ -148,5 +141,5 @@ fn demo_force_builds_beside_the_old_demo_and_swaps_it_in_whole() {
     let demo_json = std::fs::read_to_string(out.join("demo.json")).unwrap();
     assert!(finished(&demo_json), "{demo_json}");
     assert!(out.join("report.html").is_file());
-    assert_eq!(dot_entries(&out), Vec::<String>::new(), "staging left beside --out");
+    assert_eq!(dot_entries_beside(&out), Vec::<String>::new(), "staging left beside --out");
 }

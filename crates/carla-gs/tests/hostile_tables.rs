@@ -5,7 +5,7 @@
 //! synthetic scene, `eval-cases` with the planner on sudden braking at t0 = 2 s, in two shards.
 
 mod cli_support;
-use cli_support::{carla_gs, killed_after, ok, refused, s};
+use cli_support::{carla_gs, dot_entries_beside, killed_after, ok, refused, s};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -163,12 +163,7 @@ fn a_killed_tables_leaves_the_old_set_or_the_new_and_a_rerun_completes() {
             // A re-run completes, with nothing of ours left beside --out.
             ok(carla_gs(&["tables", s(&shards_dir), "--out", s(&out)]));
             assert_eq!(table_state(&out, &names), ("new", true), "{name}: the re-run after a kill at {ms} ms");
-            let leftovers: Vec<String> = std::fs::read_dir(out.parent().unwrap())
-                .unwrap()
-                .flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| n.starts_with('.'))
-                .collect();
+            let leftovers = dot_entries_beside(&out);
             assert!(leftovers.is_empty(), "{name}: left beside --out: {leftovers:?}");
         }
         // A kill hit before the moves at least (the old set); the later ones usually find the new

@@ -68,8 +68,8 @@ pub struct EvalRequest<'a> {
     pub force: bool,
 }
 
-/// Whether `dir` is an `eval-drive` output (to be replaced with `--force`).
-fn is_eval_dir(dir: &Path) -> bool {
+/// Whether `dir` is an `eval-drive` (or `drive-tables`) output (to be replaced with `--force`).
+pub fn is_eval_dir(dir: &Path) -> bool {
     scene::owned::has_format_marker(dir, "drive-eval.json", EVAL_FORMAT)
 }
 

@@ -268,8 +268,14 @@ pub fn placements_in(scene: &Scene, o: &ReasonOptions, streets: Option<&Streets>
 /// ([`crate::behavior::candidate_zones`], in the ego's frame at t0): a slot along a bending path
 /// can end up beside the ego's heading line, where no plan would start from it.
 fn positioned(world: &World, b: Behavior, poses: &[InsertedPose], size: [f64; 3]) -> Result<(), String> {
-    let run: Vec<scene::motion::Pose2> =
-        poses.iter().map(|p| scene::motion::Pose2 { t: p.t, x: p.x, y: p.y, heading: p.heading }).collect();
+    // The poses `kin_at` samples: from the last at or before t0 - 0.1 s to the first at or after
+    // t0 + 0.1 s (its central difference), not the whole log.
+    let lo = poses.partition_point(|p| p.t <= world.t0 - 0.1).saturating_sub(1);
+    let hi = (poses.partition_point(|p| p.t < world.t0 + 0.1) + 1).min(poses.len());
+    let run: Vec<scene::motion::Pose2> = poses[lo..hi.max(lo)]
+        .iter()
+        .map(|p| scene::motion::Pose2 { t: p.t, x: p.x, y: p.y, heading: p.heading })
+        .collect();
     let now = crate::world::kin_at(&run, world.t0).ok_or("no pose at t0")?;
     let v = crate::world::Vehicle {
         id: String::new(),

@@ -110,7 +110,7 @@ pub struct TablesArgs {
 const DRIVE_EVAL_OUT: super::out_dir::Kind = super::out_dir::Kind {
     what: "a drive-tables output",
     marker: "drive-eval.json of format carla-gs-drive-eval/1",
-    ours: |dir| scene::has_format_marker(dir, "drive-eval.json", drive::eval::EVAL_FORMAT),
+    ours: drive::eval_run::is_eval_dir,
 };
 
 fn settings(a: &LoopArgs, scene: &scene::Scene) -> anyhow::Result<EpisodeSettings> {

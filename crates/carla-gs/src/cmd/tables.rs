@@ -27,8 +27,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     super::out_dir::check_replaceable(&a.out, &[], true, &super::eval_out::EVAL_OUT)?;
     let report = cases::merge::merge(&a.dirs)?;
-    let dest = if a.out.exists() { a.out.canonicalize()? } else { a.out.clone() };
-    let staged = scene::StagedDir::new(&dest, true)?;
+    let staged = super::out_dir::stage(&a.out, &[], true, &super::eval_out::EVAL_OUT)?;
     cases::report::write(staged.path(), &report, !a.no_plots)?;
     commit(staged)?;
     println!("{}", cases::summary_markdown(&report));

@@ -78,3 +78,11 @@ pub fn killed_after(args: &[&str], ms: u64) -> bool {
     let _ = child.kill();
     child.wait().expect("wait for carla-gs").success()
 }
+
+/// The entries beside `out` (in its parent) whose names start with a dot: our staging and
+/// set-aside folders, which a finished command must not leave.
+pub fn dot_entries_beside(out: &Path) -> Vec<String> {
+    let parent = out.parent().expect("--out has a parent");
+    let names = std::fs::read_dir(parent).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned());
+    names.filter(|n| n.starts_with('.')).collect()
+}
